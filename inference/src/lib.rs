@@ -1,0 +1,25 @@
+//! phyllo's inference core: from an image file to a leaf count.
+//!
+//! Data flows one way through these stages, each in its own module:
+//!
+//! ```text
+//! decode ─► region ─► tiling ─► model (ONNX Runtime) ─► stitch ─► postprocess ─► CountResult
+//! ```
+//!
+//! [`Counter`] ties the stages together; the daemon and the CLI only use it.
+
+pub mod counter;
+pub mod decode;
+pub mod error;
+pub mod model;
+pub mod overlay;
+pub mod postprocess;
+pub mod region;
+pub mod result;
+pub mod runtime;
+pub mod stitch;
+pub mod tiling;
+
+pub use counter::{Counter, CounterConfig};
+pub use error::InferenceError;
+pub use result::{CountResult, Instance, StageTimings};

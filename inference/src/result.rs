@@ -1,0 +1,54 @@
+//! What counting one image produces.
+
+use serde::{Deserialize, Serialize};
+
+/// One panoptic instance found in an image, in the original image's pixels.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Instance {
+    /// Instance number within the image, from 1.
+    pub id: u32,
+    /// Semantic class id (contract: 1 leaf, 3 panicle).
+    pub class: u8,
+    /// Semantic class name.
+    pub class_name: String,
+    /// Area in original-image pixels.
+    pub area: u64,
+    /// Bounding box `[x0, y0, x1, y1]` (x1, y1 exclusive) in original-image pixels.
+    pub bbox: [u32; 4],
+    /// Predicted instance centre `[x, y]` in original-image pixels.
+    pub centre: [f32; 2],
+    /// Mean confidence: centre heatmap peak times mean class probability.
+    pub score: f32,
+}
+
+/// Wall-clock time per stage, in milliseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct StageTimings {
+    /// Reading and decoding the file.
+    pub decode: f64,
+    /// Finding the plant, scaling and cutting tiles.
+    pub tile: f64,
+    /// ONNX Runtime.
+    pub inference: f64,
+    /// Stitching tiles and panoptic post-processing.
+    pub postprocess: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+/// The result of counting one image.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CountResult {
+    /// Number of leaf instances at or above the minimum area.
+    pub leaf_count: u32,
+    /// All thing instances (leaves and panicles) that passed the minimum area.
+    pub instances: Vec<Instance>,
+    /// Original image width and height.
+    pub image_size: [u32; 2],
+    /// Plant region `[x0, y0, x1, y1]` in original-image pixels.
+    pub region: [u32; 4],
+    /// Number of 512x512 tiles run through the model.
+    pub tiles: u32,
+    /// Time per stage.
+    pub ms: StageTimings,
+}
