@@ -107,14 +107,14 @@ class PhylloNet(nn.Module):
     graph, so ONNX consumers see offsets directly in output pixels.
     """
 
-    def __init__(self, num_classes: int = 4, width: tuple[int, ...] = (16, 24, 32, 64, 96),
+    def __init__(self, num_classes: int = 4, width: tuple[int, ...] = (16, 24, 32, 64, 128),
                  dec: tuple[int, ...] = (64, 48, 32, 24), offset_scale: float = 8.0):
         super().__init__()
         c2, c4, c8, c16, c32 = width
         d16, d8, d4, d2 = dec
         self.offset_scale = offset_scale
         self.stem = nn.Sequential(conv_bn(3, c2, 3, stride=2), SepConv(c2, c2))  # stride 2
-        self.s4 = _stage(c2, c4, 2, 2)
+        self.s4 = _stage(c2, c4, 2, 2, expand=3)  # expand 3: this stage runs at the largest size
         self.s8 = _stage(c4, c8, 3, 2)
         self.s16 = _stage(c8, c16, 3, 2)
         self.s32 = _stage(c16, c32, 2, 2)
