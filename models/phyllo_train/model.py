@@ -142,6 +142,8 @@ class PhylloNet(nn.Module):
                 nn.init.ones_(m.weight)
                 nn.init.zeros_(m.bias)
         # Small final layers: start near "no centre, zero offset", as Panoptic-DeepLab heads do.
+        # Small semantic logits start the CE near log(4) instead of exploding on random features.
+        nn.init.normal_(self.sem_head[-1].weight, std=1e-2)
         for head in (self.center_head, self.offset_head):
             nn.init.normal_(head[-1].weight, std=1e-3)
             nn.init.zeros_(head[-1].bias)
