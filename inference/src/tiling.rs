@@ -89,7 +89,7 @@ pub fn prepare(contract: &Contract, img: &RgbImage, mode: RegionMode) -> Canvas 
                 [0, 0, sw, sh]
             }
         }
-        RegionMode::Auto => plant_bbox(&scaled, 0.003, 12, 40).unwrap_or([0, 0, sw, sh]),
+        RegionMode::Auto => plant_bbox(&scaled, 0.02, 12, 40).unwrap_or([0, 0, sw, sh]),
     };
 
     // Grow the region to at least one tile per side, centred on the plant,
