@@ -164,15 +164,23 @@ pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParam
     let off = out.offset.as_standard_layout();
     let off = off.as_slice().expect("standard layout");
 
-    // Semantic argmax and its softmax probability.
+    // Semantic argmax; the softmax probability of the winner is only needed
+    // on thing pixels (for instance scores), so only they pay for the exps.
     let mut semantic = vec![0u8; n];
     let mut prob = vec![0f32; n];
     for i in 0..n {
         let logits: [f32; NUM_CLASSES] = std::array::from_fn(|c| sem[c * n + i]);
-        let (best, &top) = logits.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).expect("4 classes");
-        let denom: f32 = logits.iter().map(|&l| (l - top).exp()).sum();
+        let mut best = 0;
+        for c in 1..NUM_CLASSES {
+            if logits[c] > logits[best] {
+                best = c;
+            }
+        }
         semantic[i] = best as u8;
-        prob[i] = 1.0 / denom;
+        if contract.is_thing(best as u8) {
+            let top = logits[best];
+            prob[i] = 1.0 / logits.iter().map(|&l| (l - top).exp()).sum::<f32>();
+        }
     }
 
     let centres = find_centres(&out.center, params);
