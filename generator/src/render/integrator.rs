@@ -45,6 +45,11 @@ pub fn trace(scene: &Scene, origin: Vec3, dir: Vec3, rng: &mut PixelRng, max_dep
         let n = hit.normal;
         let wo = -d;
         let bsdf = scene.materials.bsdf(hit.info.material, hit.info.senescence);
+        if super::materials::Materials::is_prop(hit.info.material) {
+            let front = if n.dot(wo) >= 0.0 { n } else { -n };
+            radiance += beta * scene.chamber.prop_radiance(bsdf.reflectance, front);
+            break;
+        }
         let lift = |w: Vec3| p + n * (EPS * n.dot(w).signum());
         // Next-event estimation: several stratified light samples at the
         // first vertex (the chamber's lights are huge, so visibility through
