@@ -48,6 +48,9 @@ pub fn decode_rgb(name: &Path, bytes: &[u8], limits: &DecodeLimits) -> Result<Rg
     if !matches!(format, ImageFormat::Png | ImageFormat::Jpeg | ImageFormat::Tiff) {
         return Err(InferenceError::image(name, format!("{format:?} images are not supported (PNG, JPEG, TIFF)")));
     }
+    if format == ImageFormat::Jpeg && !has_jpeg_end(bytes) {
+        return Err(InferenceError::image(name, "corrupt or truncated Jpeg: no end-of-image marker (file still being written?)"));
+    }
     let (w, h) = reader
         .into_dimensions()
         .map_err(|e| InferenceError::image(name, format!("cannot read {format:?} header: {e}")))?;
@@ -63,6 +66,16 @@ pub fn decode_rgb(name: &Path, bytes: &[u8], limits: &DecodeLimits) -> Result<Rg
         .decode()
         .map_err(|e| InferenceError::image(name, format!("corrupt or truncated {format:?}: {e}")))?;
     Ok(img.into_rgb8())
+}
+
+/// Whether a JPEG ends with its end-of-image marker (FF D9). Decoders fill a
+/// truncated JPEG with grey and report success, so a half-written file would
+/// otherwise be counted as data. Some cameras pad after the marker, so a
+/// short tail of padding is allowed.
+fn has_jpeg_end(bytes: &[u8]) -> bool {
+    let tail = &bytes[bytes.len().saturating_sub(4096)..];
+    let trimmed = tail.iter().rposition(|&b| b != 0x00).map_or(&tail[..0], |i| &tail[..=i]);
+    trimmed.windows(2).rev().take(64).any(|w| w == [0xFF, 0xD9])
 }
 
 /// Refuses images that are too small to hold a plant or too large to be a camera frame.
@@ -117,6 +130,11 @@ mod tests {
         let full = png_bytes(image::DynamicImage::new_rgb8(64, 64));
         let e = decode_rgb(Path::new("cut.png"), &full[..full.len() / 2], &lim).unwrap_err().to_string();
         assert!(e.contains("cut.png") && e.contains("corrupt or truncated"), "{e}");
+        let mut jpeg = Vec::new();
+        image::DynamicImage::new_rgb8(64, 64).write_to(&mut Cursor::new(&mut jpeg), ImageFormat::Jpeg).unwrap();
+        assert!(decode_rgb(Path::new("ok.jpg"), &jpeg, &lim).is_ok());
+        let e = decode_rgb(Path::new("half.jpg"), &jpeg[..jpeg.len() - 40], &lim).unwrap_err().to_string();
+        assert!(e.contains("half.jpg") && e.contains("truncated"), "{e}");
         let e = check_dimensions(Path::new("bomb.png"), 100_000, 100_000, &lim).unwrap_err().to_string();
         assert!(e.contains("decompression bomb"), "{e}");
         let e = check_dimensions(Path::new("dot.png"), 1, 1, &lim).unwrap_err().to_string();

@@ -48,6 +48,10 @@ pub struct Model {
 pub struct ModelOptions {
     /// ONNX Runtime intra-op threads (0: ONNX Runtime's default, one per core).
     pub intra_threads: usize,
+    /// Let idle ONNX Runtime threads spin. Off by default: spinning threads
+    /// steal the cores that decode the next image (measured: 25 ms per tile
+    /// without spinning, 54 ms with it, on 2 shared cores).
+    pub spinning: bool,
 }
 
 impl Model {
@@ -69,6 +73,7 @@ impl Model {
         if options.intra_threads > 0 {
             builder = builder.with_intra_threads(options.intra_threads).map_err(|e| InferenceError::model(path, e))?;
         }
+        builder = builder.with_intra_op_spinning(options.spinning).map_err(|e| InferenceError::model(path, e))?;
         let session = builder
             .commit_from_memory(&bytes)
             .map_err(|e| InferenceError::model(path, format!("not a loadable ONNX model: {e}")))?;

@@ -94,10 +94,11 @@ pub fn environment(explicit: Option<&Path>) -> Result<&'static ort::environment:
     if !path.exists() {
         return Err(InferenceError::Runtime(format!("{}: no such file", path.display())));
     }
-    // `{:?}` keeps the dlopen reason (missing symbol, wrong ELF class, ...);
-    // ort's Display only says that dlopen failed.
+    // Both forms: `{:?}` keeps the dlopen reason (missing file, wrong ELF
+    // class, ...) that ort's Display drops; Display explains version and
+    // symbol problems in words.
     let builder = ort::init_from(&path)
-        .map_err(|e| InferenceError::Runtime(format!("cannot load {}: {e:?}", path.display())))?;
+        .map_err(|e| InferenceError::Runtime(format!("cannot load {}: {e} ({e:?})", path.display())))?;
     let env = builder
         .with_name("phyllo")
         .build()
