@@ -135,7 +135,9 @@ pub fn find_centres(center: &Array2<f32>, params: &PostprocessParams) -> Vec<(us
             if v < params.center_threshold {
                 continue;
             }
-            let m = (a..b).map(|yy| row_max[yy * w + x]).fold(f32::NEG_INFINITY, f32::max);
+            let m = (a..b)
+                .map(|yy| row_max[yy * w + x])
+                .fold(f32::NEG_INFINITY, f32::max);
             if v < m {
                 continue;
             }
@@ -219,8 +221,13 @@ pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParam
         bbox: [u32; 4],
         prob_sum: f32,
     }
-    let mut acc: Vec<Acc> =
-        (0..k).map(|_| Acc { area: 0, bbox: [u32::MAX, u32::MAX, 0, 0], prob_sum: 0.0 }).collect();
+    let mut acc: Vec<Acc> = (0..k)
+        .map(|_| Acc {
+            area: 0,
+            bbox: [u32::MAX, u32::MAX, 0, 0],
+            prob_sum: 0.0,
+        })
+        .collect();
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
@@ -232,7 +239,12 @@ pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParam
             a.area += 1;
             a.prob_sum += prob[i];
             let (x, y) = (x as u32, y as u32);
-            a.bbox = [a.bbox[0].min(x), a.bbox[1].min(y), a.bbox[2].max(x + 1), a.bbox[3].max(y + 1)];
+            a.bbox = [
+                a.bbox[0].min(x),
+                a.bbox[1].min(y),
+                a.bbox[2].max(x + 1),
+                a.bbox[3].max(y + 1),
+            ];
         }
     }
     // Keep instances above the minimum area; renumber densely in score order.
@@ -263,7 +275,13 @@ pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParam
     for v in instance.iter_mut() {
         *v = renumber[*v as usize];
     }
-    Panoptic { height: h, width: w, semantic, instance, segments }
+    Panoptic {
+        height: h,
+        width: w,
+        semantic,
+        instance,
+        segments,
+    }
 }
 
 #[cfg(test)]
@@ -271,7 +289,12 @@ mod tests {
     use super::*;
 
     fn params() -> PostprocessParams {
-        PostprocessParams { center_threshold: 0.1, nms_kernel: 7, top_k: 10, min_leaf_area: 1 }
+        PostprocessParams {
+            center_threshold: 0.1,
+            nms_kernel: 7,
+            top_k: 10,
+            min_leaf_area: 1,
+        }
     }
 
     #[test]

@@ -44,10 +44,13 @@ pub fn median_colour(img: &RgbImage) -> [u8; 3] {
     let half = (img.width() * img.height()).div_ceil(2);
     std::array::from_fn(|c| {
         let mut acc = 0;
-        hist[c].iter().position(|&n| {
-            acc += n;
-            acc >= half
-        }).unwrap_or(255) as u8
+        hist[c]
+            .iter()
+            .position(|&n| {
+                acc += n;
+                acc >= half
+            })
+            .unwrap_or(255) as u8
     })
 }
 
@@ -88,7 +91,12 @@ pub fn plant_bbox(img: &RgbImage, trim: f32, margin: u32, min_pixels: u32) -> Op
     let cut = (total as f32 * trim) as u32;
     let (x0, x1) = trimmed_span(&cols, cut);
     let (y0, y1) = trimmed_span(&rows, cut);
-    Some([x0.saturating_sub(margin), y0.saturating_sub(margin), (x1 + margin).min(w), (y1 + margin).min(h)])
+    Some([
+        x0.saturating_sub(margin),
+        y0.saturating_sub(margin),
+        (x1 + margin).min(w),
+        (y1 + margin).min(h),
+    ])
 }
 
 /// The span `[lo, hi)` of a histogram after dropping up to `cut` counts from each end.
@@ -140,7 +148,10 @@ mod tests {
         // Black carrier and grey frames are not plant.
         let warm_white = [251, 249, 226];
         assert!(!is_plant_pixel([20, 20, 22], warm_white));
-        assert!(!is_plant_pixel([168, 167, 141], warm_white), "a panel lit warm is not plant");
+        assert!(
+            !is_plant_pixel([168, 167, 141], warm_white),
+            "a panel lit warm is not plant"
+        );
         assert!(!is_plant_pixel(warm_white, warm_white));
         assert!(is_plant_pixel([70, 110, 50], warm_white));
         assert!(is_plant_pixel([190, 160, 80], warm_white));

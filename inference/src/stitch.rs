@@ -25,9 +25,15 @@ pub struct TileOutputs {
 impl TileOutputs {
     /// Appends another batch's outputs.
     pub fn append(&mut self, other: TileOutputs) {
-        self.semantic.append(ndarray::Axis(0), other.semantic.view()).expect("same tile shape");
-        self.center.append(ndarray::Axis(0), other.center.view()).expect("same tile shape");
-        self.offset.append(ndarray::Axis(0), other.offset.view()).expect("same tile shape");
+        self.semantic
+            .append(ndarray::Axis(0), other.semantic.view())
+            .expect("same tile shape");
+        self.center
+            .append(ndarray::Axis(0), other.center.view())
+            .expect("same tile shape");
+        self.offset
+            .append(ndarray::Axis(0), other.offset.view())
+            .expect("same tile shape");
     }
 
     /// Number of tiles.
@@ -43,7 +49,13 @@ impl TileOutputs {
 
 /// Stitches `outputs` of tiles whose top-left corners are `tiles` (canvas
 /// pixels) into a canvas of `canvas_w` x `canvas_h` canvas pixels.
-pub fn stitch(outputs: &TileOutputs, tiles: &[[u32; 2]], canvas_w: u32, canvas_h: u32, stride: u32) -> RawOutputs {
+pub fn stitch(
+    outputs: &TileOutputs,
+    tiles: &[[u32; 2]],
+    canvas_w: u32,
+    canvas_h: u32,
+    stride: u32,
+) -> RawOutputs {
     let (n, classes, t, t2) = outputs.semantic.dim();
     assert_eq!(n, tiles.len(), "one output per tile");
     assert_eq!(t, t2, "square tiles");
@@ -76,12 +88,27 @@ pub fn stitch(outputs: &TileOutputs, tiles: &[[u32; 2]], canvas_w: u32, canvas_h
     // dimensions per pixel costs more than the post-processing itself.
     for c in 0..classes {
         let mut plane = out.semantic.index_axis_mut(ndarray::Axis(0), c);
-        copy_plane(&outputs.semantic, c, &owner, plane.as_slice_mut().expect("fresh array is contiguous"));
+        copy_plane(
+            &outputs.semantic,
+            c,
+            &owner,
+            plane.as_slice_mut().expect("fresh array is contiguous"),
+        );
     }
-    copy_plane(&outputs.center, 0, &owner, out.center.as_slice_mut().expect("fresh array is contiguous"));
+    copy_plane(
+        &outputs.center,
+        0,
+        &owner,
+        out.center.as_slice_mut().expect("fresh array is contiguous"),
+    );
     for c in 0..2 {
         let mut plane = out.offset.index_axis_mut(ndarray::Axis(0), c);
-        copy_plane(&outputs.offset, c, &owner, plane.as_slice_mut().expect("fresh array is contiguous"));
+        copy_plane(
+            &outputs.offset,
+            c,
+            &owner,
+            plane.as_slice_mut().expect("fresh array is contiguous"),
+        );
     }
     out
 }

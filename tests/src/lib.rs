@@ -6,7 +6,10 @@ use std::process::{Command, Output};
 
 /// Root of the repository.
 pub fn repo_root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).parent().expect("tests/ has a parent").to_path_buf()
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("tests/ has a parent")
+        .to_path_buf()
 }
 
 /// The real development images beside the checkout (`../shared/data/unl-maize-dev`).
@@ -22,7 +25,10 @@ pub fn dev_data() -> Option<PathBuf> {
 fn bin_dir() -> PathBuf {
     let exe = std::env::current_exe().expect("test executable path");
     // target/<profile>/deps/<test> -> target/<profile>
-    exe.parent().and_then(Path::parent).expect("test binary lives in target/<profile>/deps").to_path_buf()
+    exe.parent()
+        .and_then(Path::parent)
+        .expect("test binary lives in target/<profile>/deps")
+        .to_path_buf()
 }
 
 /// Path to a workspace binary, (re)built first: `cargo test` builds other
@@ -34,9 +40,13 @@ pub fn binary(name: &str, package: &str) -> PathBuf {
     let mut built = BUILT.lock().unwrap_or_else(|e| e.into_inner());
     if !built.iter().any(|b| b == name) {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let profile = bin_dir().file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let profile = bin_dir()
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
         let mut cmd = Command::new(cargo);
-        cmd.current_dir(repo_root()).args(["build", "--quiet", "-p", package, "--bin", name]);
+        cmd.current_dir(repo_root())
+            .args(["build", "--quiet", "-p", package, "--bin", name]);
         if profile == "release" {
             cmd.arg("--release");
         }

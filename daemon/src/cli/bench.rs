@@ -25,7 +25,11 @@ pub struct Args {
     #[arg(long, value_name = "DIR")]
     pub frames: Option<PathBuf>,
     /// Where to find images to upscale when --frames is not given.
-    #[arg(long, value_name = "DIR", default_value = "../shared/data/unl-maize-dev/images")]
+    #[arg(
+        long,
+        value_name = "DIR",
+        default_value = "../shared/data/unl-maize-dev/images"
+    )]
     pub source: PathBuf,
     /// Number of frames to make when --frames is not given.
     #[arg(long, default_value_t = 8)]
@@ -53,8 +57,18 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let counter = Counter::new(args.counter.config()?)?;
     let info = counter.model_info().clone();
     println!("model        {} ({})", info.id(), info.path.display());
-    println!("ONNX Runtime {}", phyllo_inference::runtime::loaded_path().map(|p| p.display().to_string()).unwrap_or_default());
-    println!("frames       {} x {} passes from {}", frames.len(), args.repeat, frames_dir.display());
+    println!(
+        "ONNX Runtime {}",
+        phyllo_inference::runtime::loaded_path()
+            .map(|p| p.display().to_string())
+            .unwrap_or_default()
+    );
+    println!(
+        "frames       {} x {} passes from {}",
+        frames.len(),
+        args.repeat,
+        frames_dir.display()
+    );
 
     // Warm-up: the first run pays for ONNX Runtime's allocations.
     counter.count_path(&frames[0])?;
@@ -95,7 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     println!();
     println!("| stage (ms per 2454x2056 PNG) | phyllo mean | phyllo p50 | python mean |");
     println!("|---|---:|---:|---:|");
-    let stages: [(&str, fn(&StageTimings) -> f64, &str); 5] = [
+    let stages: [(&str, StageField, &str); 5] = [
         ("decode", |t| t.decode, "decode"),
         ("region + scale + tile", |t| t.tile, "tile"),
         ("inference (ONNX Runtime)", |t| t.inference, "inference"),
@@ -121,18 +135,40 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     println!("tiles per image            {tiles_per_image:.2}");
     println!("images/s, one at a time    {seq_ips:.2}");
     println!("images/s, decode ahead     {pipe_ips:.2}");
-    if let Some(py_ips) = python.as_ref().and_then(|p| p.get("images_per_s")).and_then(|v| v.as_f64()) {
+    if let Some(py_ips) = python
+        .as_ref()
+        .and_then(|p| p.get("images_per_s"))
+        .and_then(|v| v.as_f64())
+    {
         println!("images/s, Python reference {py_ips:.2}");
-        println!("speed-up vs Python         {:.2}x (decode ahead) / {:.2}x (one at a time)", pipe_ips / py_ips, seq_ips / py_ips);
-        if let Some(agree) = python.as_ref().and_then(|p| p.get("counts")).and_then(|v| v.as_array()) {
-            let ours: Vec<u32> = frames.iter().map(|f| counter.count_path(f).map(|r| r.leaf_count)).collect::<Result<_, _>>()?;
+        println!(
+            "speed-up vs Python         {:.2}x (decode ahead) / {:.2}x (one at a time)",
+            pipe_ips / py_ips,
+            seq_ips / py_ips
+        );
+        if let Some(agree) = python
+            .as_ref()
+            .and_then(|p| p.get("counts"))
+            .and_then(|v| v.as_array())
+        {
+            let ours: Vec<u32> = frames
+                .iter()
+                .map(|f| counter.count_path(f).map(|r| r.leaf_count))
+                .collect::<Result<_, _>>()?;
             let theirs: Vec<u64> = agree.iter().filter_map(|v| v.as_u64()).collect();
-            let same = ours.iter().zip(&theirs).filter(|(a, b)| u64::from(**a) == **b).count();
+            let same = ours
+                .iter()
+                .zip(&theirs)
+                .filter(|(a, b)| u64::from(**a) == **b)
+                .count();
             println!("same leaf count as Python  {same}/{}", ours.len());
         }
     }
     Ok(ExitCode::SUCCESS)
 }
+
+/// Reads one stage's time out of [`StageTimings`].
+type StageField = fn(&StageTimings) -> f64;
 
 fn fmt_opt(v: Option<f64>) -> String {
     v.map(|v| format!("{v:.1}")).unwrap_or_else(|| "-".into())
@@ -182,10 +218,18 @@ fn list_frames(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
 /// Writes `n` full-size 2454x2056 PNG frames made from the images in `source`.
 fn make_frames(source: &Path, out: &Path, n: usize) -> anyhow::Result<()> {
     let mut imgs: Vec<PathBuf> = std::fs::read_dir(source)
-        .with_context(|| format!("no --frames given and cannot read {} to make frames", source.display()))?
+        .with_context(|| {
+            format!(
+                "no --frames given and cannot read {} to make frames",
+                source.display()
+            )
+        })?
         .filter_map(Result::ok)
         .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("jpg") || e.eq_ignore_ascii_case("png")))
+        .filter(|p| {
+            p.extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("jpg") || e.eq_ignore_ascii_case("png"))
+        })
         .collect();
     imgs.sort();
     if imgs.is_empty() {
@@ -193,15 +237,23 @@ fn make_frames(source: &Path, out: &Path, n: usize) -> anyhow::Result<()> {
     }
     for (i, src) in imgs.iter().cycle().take(n).enumerate() {
         let img = image::open(src).with_context(|| format!("cannot open {}", src.display()))?;
-        let big = img.resize_exact(2454, 2056, image::imageops::FilterType::Triangle).into_rgb8();
+        let big = img
+            .resize_exact(2454, 2056, image::imageops::FilterType::Triangle)
+            .into_rgb8();
         let dst = out.join(format!("frame{i:03}.png"));
-        big.save(&dst).with_context(|| format!("cannot write {}", dst.display()))?;
+        big.save(&dst)
+            .with_context(|| format!("cannot write {}", dst.display()))?;
     }
     Ok(())
 }
 
 /// Runs `models/reference_pipeline.py` and returns its JSON summary.
-fn python_reference(python: &str, model: &Path, frames: &Path, repeat: usize) -> anyhow::Result<serde_json::Value> {
+fn python_reference(
+    python: &str,
+    model: &Path,
+    frames: &Path,
+    repeat: usize,
+) -> anyhow::Result<serde_json::Value> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/reference_pipeline.py");
     let out = Command::new(python)
         .arg(&script)
@@ -214,7 +266,11 @@ fn python_reference(python: &str, model: &Path, frames: &Path, repeat: usize) ->
         .output()
         .with_context(|| format!("cannot run {python}"))?;
     if !out.status.success() {
-        bail!("{} failed: {}", script.display(), String::from_utf8_lossy(&out.stderr).trim());
+        bail!(
+            "{} failed: {}",
+            script.display(),
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
     }
     let text = String::from_utf8_lossy(&out.stdout);
     let last = text.lines().last().unwrap_or_default();

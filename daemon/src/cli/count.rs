@@ -40,7 +40,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
     }
     if let Some(dir) = &args.overlay {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create overlay directory {}", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create overlay directory {}", dir.display()))?;
     }
     let model_id = counter.model_id();
     let mut failed = 0usize;
@@ -77,7 +78,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             }
         }
     }
-    Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
+    Ok(if failed > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
 }
 
 fn count_one(
@@ -92,10 +97,20 @@ fn count_one(
     let analysis = counter.analyse_bytes(path, &bytes)?;
     if let Some(dir) = overlay_dir {
         let img = phyllo_inference::decode::decode_rgb(path, &bytes, &counter.config().limits)?;
-        let drawn = overlay::render(Contract::embedded(), &img, &analysis, !counter.model_info().trained);
-        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "image".into());
+        let drawn = overlay::render(
+            Contract::embedded(),
+            &img,
+            &analysis,
+            !counter.model_info().trained,
+        );
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "image".into());
         let out = dir.join(format!("{stem}.overlay.png"));
-        drawn.save(&out).map_err(|e| InferenceError::image(&out, format!("cannot write overlay: {e}")))?;
+        drawn
+            .save(&out)
+            .map_err(|e| InferenceError::image(&out, format!("cannot write overlay: {e}")))?;
     }
     Ok(analysis.result)
 }

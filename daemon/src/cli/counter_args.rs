@@ -50,7 +50,12 @@ pub fn parse_region(s: &str) -> anyhow::Result<RegionMode> {
             if v.len() != 4 || v[2] <= v[0] || v[3] <= v[1] {
                 bail!("--region {s:?}: expected x0,y0,x1,y1 with x1 > x0 and y1 > y0");
             }
-            Ok(RegionMode::Fixed { x0: v[0], y0: v[1], x1: v[2], y1: v[3] })
+            Ok(RegionMode::Fixed {
+                x0: v[0],
+                y0: v[1],
+                x1: v[2],
+                y1: v[3],
+            })
         }
     }
 }

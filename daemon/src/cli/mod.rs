@@ -10,7 +10,11 @@ pub mod counter_args;
 
 /// Top-level arguments.
 #[derive(Debug, Parser)]
-#[command(name = "phyllo", version, about = "Counts sorghum leaves and tracks leaf emergence")]
+#[command(
+    name = "phyllo",
+    version,
+    about = "Counts sorghum leaves and tracks leaf emergence"
+)]
 pub struct Cli {
     /// More log output (repeat for more).
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
@@ -38,7 +42,10 @@ pub fn init_logging(verbose: u8) {
     };
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
-    let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).try_init();
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
 }
 
 /// Runs the chosen subcommand.
