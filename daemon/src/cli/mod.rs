@@ -1,0 +1,68 @@
+//! The `phyllo` command line: one module per subcommand.
+
+pub mod export;
+pub mod import;
+pub mod serve;
+pub mod status;
+pub mod tail;
+pub mod timeline;
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+use crate::config::Config;
+
+/// phyllo: counts sorghum leaves in phenotyping images and keeps per-plant
+/// leaf-emergence timelines.
+#[derive(Debug, Parser)]
+#[command(name = "phyllo", version, about, propagate_version = true)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run the daemon: watch the drop directory, count leaves, keep timelines.
+    Serve(serve::Args),
+    /// Ingest leaf counts made elsewhere (CSV: plant,timestamp,view,leaf_count).
+    Import(import::Args),
+    /// Follow new counts and emergence events as they land, until interrupted.
+    Tail(tail::Args),
+    /// Write CSV (images, sessions, timeline or events), atomically.
+    Export(export::Args),
+    /// Print (and plot) one plant's timeline.
+    Timeline(timeline::Args),
+    /// Show the service's queue, progress, failures and model.
+    Status(status::Args),
+}
+
+/// `--config FILE`, shared by every subcommand that needs the config.
+#[derive(Debug, clap::Args)]
+pub struct ConfigArg {
+    /// Configuration file (TOML).
+    #[arg(long, short = 'c', value_name = "FILE", env = "PHYLLO_CONFIG")]
+    pub config: PathBuf,
+}
+
+impl ConfigArg {
+    /// Loads the configuration.
+    pub fn load(&self) -> anyhow::Result<Config> {
+        Config::load(&self.config)
+    }
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Serve(a) => serve::run(a),
+        Command::Import(a) => import::run(a),
+        Command::Tail(a) => tail::run(a),
+        Command::Export(a) => export::run(a),
+        Command::Timeline(a) => timeline::run(a),
+        Command::Status(a) => status::run(a),
+    }
+}

@@ -1,0 +1,24 @@
+//! phyllo: the leaf-counting daemon and its operator commands.
+//!
+//! Data flows one way, each stage in its own module (sources → transforms →
+//! sinks, as in Vector; the service shape follows tokio's mini-redis):
+//!
+//! ```text
+//! source::watch / source::scan ─► source::intake (stability, dedupe) ─► bounded queue
+//!   ─► worker (hash, names, counter off the async runtime) ─► store (one transaction per image)
+//!   ─► timeline (view fusion, isotonic fit, events) ─► sinks: tail, export, plot, status
+//! ```
+//!
+//! [`config`] is the TOML file; [`service`] wires the stages for `phyllo serve`.
+
+pub mod cli;
+pub mod config;
+pub mod counting;
+pub mod names;
+pub mod service;
+pub mod sinks;
+pub mod source;
+pub mod store;
+pub mod systemd;
+pub mod timeline;
+pub mod worker;

@@ -1,0 +1,23 @@
+//! The `phyllo` binary: parses the command line and runs it.
+
+use clap::Parser;
+use tracing_subscriber::EnvFilter;
+
+fn main() {
+    // Logs go to stderr; under systemd they land in the journal, which adds timestamps.
+    let under_systemd = std::env::var_os("JOURNAL_STREAM").is_some();
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(EnvFilter::try_from_env("PHYLLO_LOG").unwrap_or_else(|_| EnvFilter::new("info")))
+        .with_writer(std::io::stderr)
+        .with_target(false);
+    if under_systemd {
+        builder.without_time().init();
+    } else {
+        builder.init();
+    }
+    let cli = phyllo::cli::Cli::parse();
+    if let Err(e) = phyllo::cli::run(cli) {
+        eprintln!("phyllo: error: {e:#}");
+        std::process::exit(1);
+    }
+}
