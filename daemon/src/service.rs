@@ -187,7 +187,6 @@ async fn report_status(mut store: Store, stats: Arc<Stats>, mut shutdown: watch:
     let watchdog = systemd::watchdog_interval();
     let every = watchdog.map_or(STATUS_EVERY, |w| w.min(STATUS_EVERY));
     let mut tick = tokio::time::interval(every);
-    let mut intake_shutdown = shutdown.clone();
     loop {
         tokio::select! {
             _ = shutdown.wait_for(|s| *s) => return store,
