@@ -63,7 +63,9 @@ pub fn follow(
         }
     };
     let mut seq = if from_start { 0 } else { store.feed_head()? };
-    while !stop() {
+    loop {
+        // Read once more after a stop request, so nothing committed before it is missed.
+        let stopping = stop();
         let rows = store.feed_after(seq, plant, 1000)?;
         for r in &rows {
             if json {
@@ -74,9 +76,11 @@ pub fn follow(
             seq = r.seq;
         }
         out.flush()?;
+        if stopping && rows.is_empty() {
+            return Ok(());
+        }
         if rows.is_empty() {
             std::thread::sleep(POLL);
         }
     }
-    Ok(())
 }
