@@ -62,7 +62,10 @@ pub struct WatchConfig {
 impl Default for WatchConfig {
     fn default() -> Self {
         Self {
-            extensions: ["png", "jpg", "jpeg", "tif", "tiff"].iter().map(|s| s.to_string()).collect(),
+            extensions: ["png", "jpg", "jpeg", "tif", "tiff"]
+                .iter()
+                .map(|s| s.to_string())
+                .collect(),
             ignore_hidden: true,
             stable_secs: 5.0,
             settle_ms: 300,
@@ -84,7 +87,10 @@ pub struct NamesConfig {
 
 impl Default for NamesConfig {
     fn default() -> Self {
-        Self { presets: crate::names::PRESET_NAMES.iter().map(|s| s.to_string()).collect(), patterns: vec![] }
+        Self {
+            presets: crate::names::PRESET_NAMES.iter().map(|s| s.to_string()).collect(),
+            patterns: vec![],
+        }
     }
 }
 
@@ -156,7 +162,11 @@ pub struct TimelineConfig {
 
 impl Default for TimelineConfig {
     fn default() -> Self {
-        Self { fusion: "max-side".into(), session_gap_minutes: 120.0, living_window: 3 }
+        Self {
+            fusion: "max-side".into(),
+            session_gap_minutes: 120.0,
+            living_window: 3,
+        }
     }
 }
 
@@ -191,7 +201,7 @@ impl Config {
         if self.inference.queue_capacity == 0 {
             bail!("inference.queue_capacity must be at least 1");
         }
-        if self.timeline.living_window == 0 || self.timeline.living_window % 2 == 0 {
+        if self.timeline.living_window.is_multiple_of(2) {
             bail!("timeline.living_window must be odd (1 disables smoothing)");
         }
         if self.timeline.session_gap_minutes <= 0.0 {

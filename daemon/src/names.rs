@@ -118,14 +118,20 @@ impl NamePatterns {
             let groups: Vec<&str> = re.capture_names().flatten().collect();
             for g in ["plant", "date", "time"] {
                 if !groups.contains(&g) {
-                    bail!("names.patterns '{}': regex has no named group (?P<{g}>...)", p.name);
+                    bail!(
+                        "names.patterns '{}': regex has no named group (?P<{g}>...)",
+                        p.name
+                    );
                 }
             }
             patterns.push((p.name.clone(), re));
         }
         for name in &cfg.presets {
             let Some(src) = preset_regex(name) else {
-                bail!("names.presets: unknown preset '{name}' (known: {})", PRESET_NAMES.join(", "));
+                bail!(
+                    "names.presets: unknown preset '{name}' (known: {})",
+                    PRESET_NAMES.join(", ")
+                );
             };
             patterns.push((name.clone(), Regex::new(&src).expect("preset regexes compile")));
         }
@@ -149,7 +155,9 @@ impl NamePatterns {
             let get = |g: &str| c.name(g).map(|m| m.as_str());
             let plant = get("plant").unwrap_or_default().to_string();
             let taken_at = parse_datetime(get("date").unwrap_or_default(), get("time").unwrap_or_default())
-                .with_context(|| format!("file {s}: pattern '{name}' matched but the date/time is invalid"))?;
+                .with_context(|| {
+                format!("file {s}: pattern '{name}' matched but the date/time is invalid")
+            })?;
             if plant.is_empty() {
                 bail!("file {s}: pattern '{name}' matched an empty plant id");
             }
@@ -158,10 +166,22 @@ impl NamePatterns {
                 Some(k) if k == "tv" || k == "top" => View::Top(angle.unwrap_or(90)),
                 _ => View::Side(angle.unwrap_or(0)),
             };
-            return Ok(ParsedName { plant, taken_at, view, pattern: name.clone() });
+            return Ok(ParsedName {
+                plant,
+                taken_at,
+                view,
+                pattern: name.clone(),
+            });
         }
-        let tried: Vec<String> = self.patterns.iter().map(|(n, re)| format!("{n} = /{}/", re.as_str())).collect();
-        bail!("file name {s} matches none of the patterns tried: {}", tried.join("; "))
+        let tried: Vec<String> = self
+            .patterns
+            .iter()
+            .map(|(n, re)| format!("{n} = /{}/", re.as_str()))
+            .collect();
+        bail!(
+            "file name {s} matches none of the patterns tried: {}",
+            tried.join("; ")
+        )
     }
 }
 
@@ -170,7 +190,11 @@ fn parse_datetime(date: &str, time: &str) -> anyhow::Result<NaiveDateTime> {
     let d = NaiveDate::parse_from_str(date, "%Y-%m-%d").with_context(|| format!("date '{date}'"))?;
     let (hms, frac) = time.split_once('.').unwrap_or((time, ""));
     let digits: String = hms.chars().filter(|c| c.is_ascii_digit()).collect();
-    let norm = if frac.is_empty() { digits } else { format!("{digits}.{frac}") };
+    let norm = if frac.is_empty() {
+        digits
+    } else {
+        format!("{digits}.{frac}")
+    };
     let t = NaiveTime::parse_from_str(&norm, "%H%M%S%.f").with_context(|| format!("time '{time}'"))?;
     Ok(d.and_time(t))
 }
@@ -191,14 +215,24 @@ mod tests {
     #[test]
     fn flat_layout_real_names() {
         let p = defaults();
-        let n = p.parse(Path::new("402-127-N55-WW-1_2019-05-10_09-18-07.937_Vis_SV_108.jpg")).unwrap();
+        let n = p
+            .parse(Path::new(
+                "402-127-N55-WW-1_2019-05-10_09-18-07.937_Vis_SV_108.jpg",
+            ))
+            .unwrap();
         assert_eq!(n.plant, "402-127-N55-WW-1");
         assert_eq!(n.taken_at, dt("2019-05-10T09:18:07.937"));
         assert_eq!(n.view, View::Side(108));
         assert_eq!(n.pattern, "flat");
-        let n = p.parse(Path::new("sub/dir/P1_2018-04-02_10-00-00_Vis_TV_90.png")).unwrap();
+        let n = p
+            .parse(Path::new("sub/dir/P1_2018-04-02_10-00-00_Vis_TV_90.png"))
+            .unwrap();
         assert_eq!((n.plant.as_str(), n.view), ("P1", View::Top(90)));
-        let n = p.parse(Path::new("402-100-N28-WW-1_2019-05-05_09-06-07.388_Vis_SV_252.Crp.jpg")).unwrap();
+        let n = p
+            .parse(Path::new(
+                "402-100-N28-WW-1_2019-05-05_09-06-07.388_Vis_SV_252.Crp.jpg",
+            ))
+            .unwrap();
         assert_eq!(n.view, View::Side(252));
     }
 
@@ -206,19 +240,38 @@ mod tests {
     fn snapshot_layouts() {
         let p = defaults();
         let n = p
-            .parse(Path::new("2018-04-01_Sorghum_P042_2018-04-20_10-32-16_5512/Vis_SV_144/0_0_0.png"))
+            .parse(Path::new(
+                "2018-04-01_Sorghum_P042_2018-04-20_10-32-16_5512/Vis_SV_144/0_0_0.png",
+            ))
             .unwrap();
-        assert_eq!((n.plant.as_str(), n.view.clone(), n.pattern.as_str()), ("P042", View::Side(144), "snapshot-dir"));
+        assert_eq!(
+            (n.plant.as_str(), n.view.clone(), n.pattern.as_str()),
+            ("P042", View::Side(144), "snapshot-dir")
+        );
         assert_eq!(n.taken_at, dt("2018-04-20T10:32:16"));
-        let n = p.parse(Path::new("2018-04-01_Sorghum_P042_2018-04-20_10-32-16_5512/0_72_0.png")).unwrap();
-        assert_eq!((n.view.clone(), n.pattern.as_str()), (View::Side(72), "snapshot-file"));
-        let n = p.parse(Path::new("x/2018-04-01_Sorghum_P042_2018-04-20_10-32-16_5512/top_0_90_0.png")).unwrap();
+        let n = p
+            .parse(Path::new(
+                "2018-04-01_Sorghum_P042_2018-04-20_10-32-16_5512/0_72_0.png",
+            ))
+            .unwrap();
+        assert_eq!(
+            (n.view.clone(), n.pattern.as_str()),
+            (View::Side(72), "snapshot-file")
+        );
+        let n = p
+            .parse(Path::new(
+                "x/2018-04-01_Sorghum_P042_2018-04-20_10-32-16_5512/top_0_90_0.png",
+            ))
+            .unwrap();
         assert_eq!((n.plant.as_str(), n.view), ("P042", View::Top(90)));
     }
 
     #[test]
     fn unmatched_name_names_file_and_patterns() {
-        let err = defaults().parse(Path::new("holiday/beach.png")).unwrap_err().to_string();
+        let err = defaults()
+            .parse(Path::new("holiday/beach.png"))
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("holiday/beach.png"), "{err}");
         for preset in PRESET_NAMES {
             assert!(err.contains(preset), "{err}");
@@ -227,7 +280,9 @@ mod tests {
 
     #[test]
     fn invalid_date_is_an_error() {
-        let err = defaults().parse(Path::new("P1_2018-13-40_10-00-00_Vis_SV_0.png")).unwrap_err();
+        let err = defaults()
+            .parse(Path::new("P1_2018-13-40_10-00-00_Vis_SV_0.png"))
+            .unwrap_err();
         assert!(format!("{err:#}").contains("2018-13-40"), "{err:#}");
     }
 
@@ -243,7 +298,10 @@ mod tests {
         let p = NamePatterns::from_config(&cfg).unwrap();
         assert_eq!(p.names(), vec!["site-b", "flat"]);
         let n = p.parse(Path::new("B7/2020-01-02T03:04:05_side36.png")).unwrap();
-        assert_eq!((n.plant.as_str(), n.view, n.taken_at), ("B7", View::Side(36), dt("2020-01-02T03:04:05")));
+        assert_eq!(
+            (n.plant.as_str(), n.view, n.taken_at),
+            ("B7", View::Side(36), dt("2020-01-02T03:04:05"))
+        );
         let n = p.parse(Path::new("B7/2020-01-02T03:04:05_top.png")).unwrap();
         assert_eq!(n.view, View::Top(90));
     }

@@ -32,7 +32,11 @@ const STATUS_EVERY: Duration = Duration::from_secs(2);
 
 /// Runs the service until `shutdown` becomes true. Must be called inside a
 /// multi-threaded tokio runtime.
-pub async fn run(config: Config, counter: Arc<dyn LeafCounter>, mut shutdown: watch::Receiver<bool>) -> anyhow::Result<()> {
+pub async fn run(
+    config: Config,
+    counter: Arc<dyn LeafCounter>,
+    mut shutdown: watch::Receiver<bool>,
+) -> anyhow::Result<()> {
     let names = NamePatterns::from_config(&config.names)?;
     let mut status_store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
     let model_id = counter.model_id();
@@ -55,7 +59,14 @@ pub async fn run(config: Config, counter: Arc<dyn LeafCounter>, mut shutdown: wa
     let filter = Filter::new(&config.drop_dir, &config.watch);
     let mut watcher = start_watch(&filter, &cand_tx);
     let intake_store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
-    let mut intake = Intake::new(filter.clone(), &config.watch, intake_store, job_tx, in_flight, stats.clone());
+    let mut intake = Intake::new(
+        filter.clone(),
+        &config.watch,
+        intake_store,
+        job_tx,
+        in_flight,
+        stats.clone(),
+    );
     let scanning = Arc::new(AtomicBool::new(false));
     spawn_scan(&config, &filter, filter.root().to_path_buf(), &cand_tx, &scanning);
 
@@ -114,7 +125,10 @@ pub async fn run(config: Config, counter: Arc<dyn LeafCounter>, mut shutdown: wa
     }
 
     systemd::stopping("stopping: finishing in-flight images");
-    tracing::info!("shutting down: {} pending, finishing in-flight images", intake.pending());
+    tracing::info!(
+        "shutting down: {} pending, finishing in-flight images",
+        intake.pending()
+    );
     drop(watcher);
     stop_workers.store(true, Ordering::SeqCst);
     // Dropping the intake drops the queue's sender: workers drain (handing back) and exit.
@@ -150,7 +164,13 @@ fn start_watch(filter: &Filter, tx: &mpsc::Sender<Candidate>) -> Option<Watch> {
 /// Scans `dir` on a blocking thread, sending files not yet done as candidates.
 /// At most one scan runs at a time; a request during a scan is dropped, since
 /// the running scan or the next periodic one covers it.
-fn spawn_scan(config: &Config, filter: &Filter, dir: PathBuf, tx: &mpsc::Sender<Candidate>, scanning: &Arc<AtomicBool>) {
+fn spawn_scan(
+    config: &Config,
+    filter: &Filter,
+    dir: PathBuf,
+    tx: &mpsc::Sender<Candidate>,
+    scanning: &Arc<AtomicBool>,
+) {
     let whole = dir == filter.root();
     if whole && scanning.swap(true, Ordering::SeqCst) {
         return;
@@ -162,9 +182,9 @@ fn spawn_scan(config: &Config, filter: &Filter, dir: PathBuf, tx: &mpsc::Sender<
         let mut sent = 0;
         for path in &files {
             let known = match (&store, filter.rel(path), std::fs::metadata(path)) {
-                (Ok(s), Some(rel), Ok(meta)) => {
-                    s.is_known(&rel, meta.len(), &crate::worker::mtime_string(&meta)).unwrap_or(false)
-                }
+                (Ok(s), Some(rel), Ok(meta)) => s
+                    .is_known(&rel, meta.len(), &crate::worker::mtime_string(&meta))
+                    .unwrap_or(false),
                 _ => false,
             };
             if !known {
@@ -203,7 +223,10 @@ async fn report_status(mut store: Store, stats: Arc<Stats>, mut shutdown: watch:
             ("busy", busy.to_string()),
             ("counted_since_start", counted.to_string()),
             ("failed_since_start", failed.to_string()),
-            ("internal_errors", stats.internal_errors.load(Ordering::Relaxed).to_string()),
+            (
+                "internal_errors",
+                stats.internal_errors.load(Ordering::Relaxed).to_string(),
+            ),
             ("last_image", last.clone()),
         ];
         // The write is short but may wait for a worker's transaction: keep it off the runtime.
@@ -218,7 +241,9 @@ async fn report_status(mut store: Store, stats: Arc<Stats>, mut shutdown: watch:
             Ok(s) => s,
             Err(e) => panic!("status writer panicked: {e}"),
         };
-        systemd::status(&format!("queue {queued}, busy {busy}, counted {counted}, failed {failed}; last {last}"));
+        systemd::status(&format!(
+            "queue {queued}, busy {busy}, counted {counted}, failed {failed}; last {last}"
+        ));
         if watchdog.is_some() {
             systemd::watchdog();
         }

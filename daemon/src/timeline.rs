@@ -63,7 +63,11 @@ impl FusionRule {
 
     /// Fuses one session's `(view, count)` pairs. `None` if there are none.
     pub fn fuse(&self, views: &[(View, f64)]) -> Option<f64> {
-        let side: Vec<f64> = views.iter().filter(|(v, _)| !v.is_top()).map(|(_, c)| *c).collect();
+        let side: Vec<f64> = views
+            .iter()
+            .filter(|(v, _)| !v.is_top())
+            .map(|(_, c)| *c)
+            .collect();
         let all: Vec<f64> = views.iter().map(|(_, c)| *c).collect();
         // Side-view rules fall back to all views when a session has only a top view.
         let pool = if side.is_empty() { &all } else { &side };
@@ -194,7 +198,10 @@ pub fn isotonic(y: &[f64], w: &[f64]) -> Vec<f64> {
             blocks.push(((m1 * w1 + m2 * w2) / wt, wt, n1 + n2));
         }
     }
-    blocks.iter().flat_map(|&(m, _, n)| std::iter::repeat_n(m, n)).collect()
+    blocks
+        .iter()
+        .flat_map(|&(m, _, n)| std::iter::repeat_n(m, n))
+        .collect()
 }
 
 /// Centred moving median with a window shrinking symmetrically at the ends.
@@ -229,7 +236,11 @@ pub fn compute(obs: &[Obs], p: &TimelineParams) -> Timeline {
                 living: 0.0,
             });
         }
-        sessions.last_mut().expect("pushed above").views.push((o.view.clone(), o.count));
+        sessions
+            .last_mut()
+            .expect("pushed above")
+            .views
+            .push((o.view.clone(), o.count));
         last = Some(o.taken_at);
     }
     for s in &mut sessions {
@@ -246,12 +257,18 @@ pub fn compute(obs: &[Obs], p: &TimelineParams) -> Timeline {
     }
     let events = emergence_events(&sessions);
     let phyllochron_days = phyllochron(&events);
-    Timeline { sessions, events, phyllochron_days }
+    Timeline {
+        sessions,
+        events,
+        phyllochron_days,
+    }
 }
 
 fn emergence_events(sessions: &[Session]) -> Vec<Event> {
     let mut events = Vec::new();
-    let Some(first) = sessions.first() else { return events };
+    let Some(first) = sessions.first() else {
+        return events;
+    };
     // Leaves counted at the first session emerged at an unknown earlier time.
     let mut next_leaf = (first.emerged + 0.5).floor().max(0.0) as u32 + 1;
     for pair in sessions.windows(2) {
@@ -261,7 +278,11 @@ fn emergence_events(sessions: &[Session]) -> Vec<Event> {
             let frac = ((level - a.emerged) / (b.emerged - a.emerged)).clamp(0.0, 1.0);
             let span = (b.start - a.start).num_milliseconds() as f64;
             let at = a.start + Duration::milliseconds((frac * span).round() as i64);
-            events.push(Event { leaf: next_leaf, at, seen_at: b.start });
+            events.push(Event {
+                leaf: next_leaf,
+                at,
+                seen_at: b.start,
+            });
             next_leaf += 1;
         }
     }
@@ -274,7 +295,10 @@ fn phyllochron(events: &[Event]) -> Option<f64> {
     }
     let t0 = events[0].at;
     let xs: Vec<f64> = events.iter().map(|e| e.leaf as f64).collect();
-    let ys: Vec<f64> = events.iter().map(|e| (e.at - t0).num_milliseconds() as f64 / 86_400_000.0).collect();
+    let ys: Vec<f64> = events
+        .iter()
+        .map(|e| (e.at - t0).num_milliseconds() as f64 / 86_400_000.0)
+        .collect();
     let n = xs.len() as f64;
     let (mx, my) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
     let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
@@ -291,7 +315,11 @@ mod tests {
     const GROUND_TRUTH: [f64; 11] = [8., 8., 10., 10., 11., 11., 12., 13., 14., 12., 14.];
 
     fn day(i: i64) -> NaiveDateTime {
-        NaiveDate::from_ymd_opt(2018, 4, 20).unwrap().and_hms_opt(10, 0, 0).unwrap() + Duration::days(i)
+        NaiveDate::from_ymd_opt(2018, 4, 20)
+            .unwrap()
+            .and_hms_opt(10, 0, 0)
+            .unwrap()
+            + Duration::days(i)
     }
 
     #[test]
@@ -320,7 +348,11 @@ mod tests {
         let obs: Vec<Obs> = GROUND_TRUTH
             .iter()
             .enumerate()
-            .map(|(i, &c)| Obs { taken_at: day(i as i64), view: View::Side(108), count: c })
+            .map(|(i, &c)| Obs {
+                taken_at: day(i as i64),
+                view: View::Side(108),
+                count: c,
+            })
             .collect();
         let t = compute(&obs, &TimelineParams::default());
         assert_eq!(t.sessions.len(), 11);
@@ -347,9 +379,17 @@ mod tests {
             for (k, a) in [0u16, 36, 72, 108, 144].iter().enumerate() {
                 let view = View::Side(*a);
                 let t = day(i as i64) + Duration::seconds(20 * k as i64);
-                obs.push(Obs { taken_at: t, view, count: c - (k % 2) as f64 });
+                obs.push(Obs {
+                    taken_at: t,
+                    view,
+                    count: c - (k % 2) as f64,
+                });
             }
-            obs.push(Obs { taken_at: day(i as i64) + Duration::minutes(3), view: View::Top(90), count: c + 5.0 });
+            obs.push(Obs {
+                taken_at: day(i as i64) + Duration::minutes(3),
+                view: View::Top(90),
+                count: c + 5.0,
+            });
         }
         let p = TimelineParams::default();
         let a = compute(&obs, &p);
@@ -365,7 +405,12 @@ mod tests {
 
     #[test]
     fn fusion_rules() {
-        let v = vec![(View::Side(0), 7.0), (View::Side(108), 9.0), (View::Side(36), 8.0), (View::Top(90), 10.0)];
+        let v = vec![
+            (View::Side(0), 7.0),
+            (View::Side(108), 9.0),
+            (View::Side(36), 8.0),
+            (View::Top(90), 10.0),
+        ];
         let f = |r: &str| FusionRule::parse(r).unwrap().fuse(&v).unwrap();
         assert_eq!(f("max-side"), 9.0);
         assert_eq!(f("max"), 10.0);
@@ -381,7 +426,11 @@ mod tests {
 
     #[test]
     fn single_session_has_no_events() {
-        let obs = vec![Obs { taken_at: day(0), view: View::Side(0), count: 5.0 }];
+        let obs = vec![Obs {
+            taken_at: day(0),
+            view: View::Side(0),
+            count: 5.0,
+        }];
         let t = compute(&obs, &TimelineParams::default());
         assert!(t.events.is_empty());
         assert_eq!(t.phyllochron_days, None);

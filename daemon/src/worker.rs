@@ -66,30 +66,40 @@ pub struct WorkerCtx {
 }
 
 /// Starts `n` worker threads sharing one receiver.
-pub fn spawn_workers(n: usize, rx: mpsc::Receiver<Job>, ctx: Arc<WorkerCtx>) -> anyhow::Result<Vec<JoinHandle<()>>> {
+pub fn spawn_workers(
+    n: usize,
+    rx: mpsc::Receiver<Job>,
+    ctx: Arc<WorkerCtx>,
+) -> anyhow::Result<Vec<JoinHandle<()>>> {
     let rx = Arc::new(Mutex::new(rx));
     let mut handles = Vec::with_capacity(n);
     for i in 0..n {
-        let mut store = Store::open(&ctx.config.database, &ctx.config.timeline, ctx.config.inference.max_attempts)?;
+        let mut store = Store::open(
+            &ctx.config.database,
+            &ctx.config.timeline,
+            ctx.config.inference.max_attempts,
+        )?;
         let (rx, ctx) = (rx.clone(), ctx.clone());
-        let h = std::thread::Builder::new().name(format!("phyllo-worker-{i}")).spawn(move || loop {
-            // Holding the lock while waiting is fine: whoever holds it takes the next job.
-            let job = rx.lock().expect("receiver lock").blocking_recv();
-            let Some(job) = job else { break };
-            ctx.stats.queued.fetch_sub(1, Ordering::Relaxed);
-            if ctx.shutdown.load(Ordering::SeqCst) {
-                // Handed back: not recorded, so the next start's scan finds it again.
+        let h = std::thread::Builder::new()
+            .name(format!("phyllo-worker-{i}"))
+            .spawn(move || loop {
+                // Holding the lock while waiting is fine: whoever holds it takes the next job.
+                let job = rx.lock().expect("receiver lock").blocking_recv();
+                let Some(job) = job else { break };
+                ctx.stats.queued.fetch_sub(1, Ordering::Relaxed);
+                if ctx.shutdown.load(Ordering::SeqCst) {
+                    // Handed back: not recorded, so the next start's scan finds it again.
+                    ctx.in_flight.lock().expect("in_flight lock").remove(&job.path);
+                    continue;
+                }
+                ctx.stats.busy.fetch_add(1, Ordering::Relaxed);
+                if let Err(e) = process(&mut store, &ctx, &job) {
+                    ctx.stats.internal_errors.fetch_add(1, Ordering::Relaxed);
+                    tracing::error!("{}: {e:#}", job.path.display());
+                }
+                ctx.stats.busy.fetch_sub(1, Ordering::Relaxed);
                 ctx.in_flight.lock().expect("in_flight lock").remove(&job.path);
-                continue;
-            }
-            ctx.stats.busy.fetch_add(1, Ordering::Relaxed);
-            if let Err(e) = process(&mut store, &ctx, &job) {
-                ctx.stats.internal_errors.fetch_add(1, Ordering::Relaxed);
-                tracing::error!("{}: {e:#}", job.path.display());
-            }
-            ctx.stats.busy.fetch_sub(1, Ordering::Relaxed);
-            ctx.in_flight.lock().expect("in_flight lock").remove(&job.path);
-        })?;
+            })?;
         handles.push(h);
     }
     Ok(handles)
@@ -98,7 +108,9 @@ pub fn spawn_workers(n: usize, rx: mpsc::Receiver<Job>, ctx: Arc<WorkerCtx>) -> 
 /// Formats a file's mtime as stored in the database.
 pub fn mtime_string(meta: &std::fs::Metadata) -> String {
     match meta.modified() {
-        Ok(t) => chrono::DateTime::<chrono::Utc>::from(t).format("%Y-%m-%dT%H:%M:%S%.9fZ").to_string(),
+        Ok(t) => chrono::DateTime::<chrono::Utc>::from(t)
+            .format("%Y-%m-%dT%H:%M:%S%.9fZ")
+            .to_string(),
         Err(_) => String::new(),
     }
 }
@@ -124,7 +136,12 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(e).with_context(|| format!("reading {}", job.path.display())),
     };
-    let facts = FileFacts { rel: job.rel.clone(), size: bytes.len() as u64, mtime: Some(mtime), sha256: sha256_hex(&bytes) };
+    let facts = FileFacts {
+        rel: job.rel.clone(),
+        size: bytes.len() as u64,
+        mtime: Some(mtime),
+        sha256: sha256_hex(&bytes),
+    };
     if let Precheck::Skip(why) = store.precheck(&facts)? {
         tracing::debug!("skip: {why}");
         ctx.stats.skipped.fetch_add(1, Ordering::Relaxed);
@@ -134,7 +151,14 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
         Err(e) => {
             let error = format!("{e:#}");
             tracing::warn!("{error}");
-            store.record(&facts, Outcome::Failed { name: None, error, retry: false })?
+            store.record(
+                &facts,
+                Outcome::Failed {
+                    name: None,
+                    error,
+                    retry: false,
+                },
+            )?
         }
         Ok(name) => {
             let counted = std::panic::catch_unwind(AssertUnwindSafe(|| ctx.counter.count(&job.path, &bytes)));
@@ -153,7 +177,14 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
                 }
                 Ok(Err(e)) => {
                     tracing::warn!("{}", e.message);
-                    store.record(&facts, Outcome::Failed { name: Some(&name), error: e.message, retry: e.retry })?
+                    store.record(
+                        &facts,
+                        Outcome::Failed {
+                            name: Some(&name),
+                            error: e.message,
+                            retry: e.retry,
+                        },
+                    )?
                 }
                 Err(panic) => {
                     let what = panic
@@ -163,7 +194,14 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
                         .unwrap_or_default();
                     let error = format!("{}: counting panicked: {what}", job.path.display());
                     tracing::error!("{error}");
-                    store.record(&facts, Outcome::Failed { name: Some(&name), error, retry: false })?
+                    store.record(
+                        &facts,
+                        Outcome::Failed {
+                            name: Some(&name),
+                            error,
+                            retry: false,
+                        },
+                    )?
                 }
             }
         }

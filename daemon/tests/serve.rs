@@ -34,7 +34,10 @@ impl LeafCounter for TextCounter {
                 ms_total: 1.0,
                 model_id: "text-counter".into(),
             }),
-            None => Err(CountError { message: format!("image {}: not a complete image", name.display()), retry: false }),
+            None => Err(CountError {
+                message: format!("image {}: not a complete image", name.display()),
+                retry: false,
+            }),
         }
     }
 
@@ -57,7 +60,10 @@ fn body(n: u32) -> String {
 }
 
 fn name(plant: &str, day: u32, angle: u32) -> String {
-    format!("{plant}_2018-04-{day:02}_10-00-{:02}_Vis_SV_{angle}.png", angle / 36)
+    format!(
+        "{plant}_2018-04-{day:02}_10-00-{:02}_Vis_SV_{angle}.png",
+        angle / 36
+    )
 }
 
 struct Running {
@@ -68,7 +74,11 @@ struct Running {
 fn start(cfg: Config) -> Running {
     let (stop, rx) = watch::channel(false);
     let handle = std::thread::spawn(move || {
-        let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .unwrap();
         rt.block_on(phyllo::service::run(cfg, Arc::new(TextCounter), rx))
     });
     Running { stop, handle }
@@ -82,7 +92,9 @@ impl Running {
 }
 
 fn query(db: &Path, sql: &str) -> i64 {
-    let Ok(s) = Store::open_read_only(db) else { return -1 };
+    let Ok(s) = Store::open_read_only(db) else {
+        return -1;
+    };
     s.conn().query_row(sql, [], |r| r.get(0)).unwrap_or(-1)
 }
 
@@ -111,7 +123,8 @@ fn serve_counts_every_complete_image_exactly_once() {
         let (db, out, stop) = (db.clone(), tail_out.clone(), tail_stop.clone());
         std::thread::spawn(move || {
             let mut buf = Vec::new();
-            phyllo::sinks::tail::follow(&db, None, true, true, &mut buf, &|| stop.load(Ordering::Relaxed)).unwrap();
+            phyllo::sinks::tail::follow(&db, None, true, true, &mut buf, &|| stop.load(Ordering::Relaxed))
+                .unwrap();
             out.lock().unwrap().extend(buf);
         })
     };
@@ -154,17 +167,42 @@ fn serve_counts_every_complete_image_exactly_once() {
         query(&db, "SELECT COUNT(*) FROM images") == 9
     });
     std::thread::sleep(Duration::from_millis(500));
-    assert_eq!(query(&db, "SELECT COUNT(*) FROM observations"), 6, "six distinct complete images");
-    assert_eq!(query(&db, "SELECT COUNT(*) FROM images WHERE state = 'duplicate'"), 1);
-    assert_eq!(query(&db, "SELECT COUNT(*) FROM images WHERE state = 'failed'"), 2);
+    assert_eq!(
+        query(&db, "SELECT COUNT(*) FROM observations"),
+        6,
+        "six distinct complete images"
+    );
+    assert_eq!(
+        query(&db, "SELECT COUNT(*) FROM images WHERE state = 'duplicate'"),
+        1
+    );
+    assert_eq!(
+        query(&db, "SELECT COUNT(*) FROM images WHERE state = 'failed'"),
+        2
+    );
     // The slow file was never taken while partial.
-    assert_eq!(query(&db, "SELECT COUNT(*) FROM images WHERE path LIKE 'P1_2018-04-03%'"), 1);
+    assert_eq!(
+        query(
+            &db,
+            "SELECT COUNT(*) FROM images WHERE path LIKE 'P1_2018-04-03%'"
+        ),
+        1
+    );
     assert_eq!(query(&db, "SELECT leaf_count FROM observations o JOIN images i ON i.id = o.image_id WHERE i.path LIKE 'P1_2018-04-03%'"), 10);
     let store = Store::open_read_only(&db).unwrap();
     let failures = store.recent_failures(10).unwrap();
-    let holiday = failures.iter().find(|(p, _)| p == "holiday.png").expect("holiday.png recorded");
-    assert!(holiday.1.contains("holiday.png") && holiday.1.contains("snapshot-dir"), "{}", holiday.1);
-    assert!(failures.iter().any(|(p, e)| p.starts_with("P3_") && e.contains("not a complete image")));
+    let holiday = failures
+        .iter()
+        .find(|(p, _)| p == "holiday.png")
+        .expect("holiday.png recorded");
+    assert!(
+        holiday.1.contains("holiday.png") && holiday.1.contains("snapshot-dir"),
+        "{}",
+        holiday.1
+    );
+    assert!(failures
+        .iter()
+        .any(|(p, e)| p.starts_with("P3_") && e.contains("not a complete image")));
     let p2 = store.plant_timeline("P2").unwrap().unwrap();
     assert_eq!((p2.sessions.len(), p2.sessions[0].fused), (1, 7.0));
     let p1 = store.plant_timeline("P1").unwrap().unwrap();
@@ -178,7 +216,10 @@ fn serve_counts_every_complete_image_exactly_once() {
         query(&db, "SELECT MAX(version) FROM images") == 2
     });
     svc.stop();
-    assert_eq!(store.service().unwrap().get("state").map(String::as_str), Some("stopped"));
+    assert_eq!(
+        store.service().unwrap().get("state").map(String::as_str),
+        Some("stopped")
+    );
 
     // While down: one new file. After restart it is counted; nothing else is recounted.
     std::fs::write(drop.join(name("P1", 5, 0)), body(13)).unwrap();
@@ -188,7 +229,11 @@ fn serve_counts_every_complete_image_exactly_once() {
     });
     std::thread::sleep(Duration::from_millis(500));
     assert_eq!(query(&db, "SELECT COUNT(*) FROM observations"), 8);
-    assert_eq!(query(&db, "SELECT SUM(attempts) FROM images WHERE state = 'failed'"), 2, "bad files not retried");
+    assert_eq!(
+        query(&db, "SELECT SUM(attempts) FROM images WHERE state = 'failed'"),
+        2,
+        "bad files not retried"
+    );
 
     // The drop directory deleted and recreated: the watch comes back.
     std::fs::remove_dir_all(&drop).unwrap();
@@ -207,7 +252,9 @@ fn serve_counts_every_complete_image_exactly_once() {
     let counts = rows.iter().filter(|r| r["kind"] == "count").count();
     assert_eq!(counts, 9, "tail saw every count:\n{out}");
     assert!(rows.iter().any(|r| r["kind"] == "event" && r["plant"] == "P1"));
-    assert!(rows.iter().any(|r| r["kind"] == "failed" && r["path"] == "holiday.png"));
+    assert!(rows
+        .iter()
+        .any(|r| r["kind"] == "failed" && r["path"] == "holiday.png"));
 }
 
 #[test]

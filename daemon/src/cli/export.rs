@@ -42,7 +42,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(out) => vec![(args.what.clone(), out)],
         None => {
             let dir = config.export_dir();
-            KINDS.iter().map(|k| (k.to_string(), dir.join(format!("{k}.csv")))).collect()
+            KINDS
+                .iter()
+                .map(|k| (k.to_string(), dir.join(format!("{k}.csv"))))
+                .collect()
         }
     };
     for (kind, out) in jobs {

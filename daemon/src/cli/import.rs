@@ -27,9 +27,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let rows = read_rows(&args.file)?;
     let mut store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
-    let source = args.file.file_name().map_or("import".into(), |n| n.to_string_lossy().into_owned());
+    let source = args
+        .file
+        .file_name()
+        .map_or("import".into(), |n| n.to_string_lossy().into_owned());
     let (n, plants) = store.import(&source, &rows)?;
-    println!("imported {n} counts for {plants} plants from {}", args.file.display());
+    println!(
+        "imported {n} counts for {plants} plants from {}",
+        args.file.display()
+    );
     Ok(())
 }
 
@@ -39,11 +45,21 @@ pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Vec<(String, NaiveDat
         .trim(csv::Trim::All)
         .from_path(path)
         .with_context(|| format!("reading {}", path.display()))?;
-    let headers = rdr.headers().with_context(|| format!("{}: header row", path.display()))?.clone();
+    let headers = rdr
+        .headers()
+        .with_context(|| format!("{}: header row", path.display()))?
+        .clone();
     let col = |name: &str| -> anyhow::Result<usize> {
-        headers.iter().position(|h| h.eq_ignore_ascii_case(name)).with_context(|| {
-            format!("{}: no '{name}' column (need plant,timestamp,view,leaf_count; have {:?})", path.display(), headers)
-        })
+        headers
+            .iter()
+            .position(|h| h.eq_ignore_ascii_case(name))
+            .with_context(|| {
+                format!(
+                    "{}: no '{name}' column (need plant,timestamp,view,leaf_count; have {:?})",
+                    path.display(),
+                    headers
+                )
+            })
     };
     let (cp, ct, cv, cc) = (col("plant")?, col("timestamp")?, col("view")?, col("leaf_count")?);
     let mut rows = Vec::new();
@@ -56,14 +72,16 @@ pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Vec<(String, NaiveDat
             bail!("{}:{line}: empty plant", path.display());
         }
         let ts = field(ct);
-        let taken_at = parse_timestamp(&ts).with_context(|| format!("{}:{line}: timestamp '{ts}'", path.display()))?;
+        let taken_at =
+            parse_timestamp(&ts).with_context(|| format!("{}:{line}: timestamp '{ts}'", path.display()))?;
         let view = field(cv);
         if view.is_empty() {
             bail!("{}:{line}: empty view", path.display());
         }
         let count = field(cc);
-        let count: u32 =
-            count.parse().with_context(|| format!("{}:{line}: leaf_count '{count}' is not a count", path.display()))?;
+        let count: u32 = count
+            .parse()
+            .with_context(|| format!("{}:{line}: leaf_count '{count}' is not a count", path.display()))?;
         rows.push((plant, taken_at, View::parse(&view), count));
     }
     Ok(rows)
@@ -75,7 +93,13 @@ pub fn parse_timestamp(s: &str) -> anyhow::Result<NaiveDateTime> {
         // An explicit offset: keep the wall-clock time, as file names carry no offset.
         return Ok(t.naive_local());
     }
-    for f in ["%Y-%m-%dT%H:%M:%S%.f", "%Y-%m-%d %H:%M:%S%.f", "%Y-%m-%dT%H:%M", "%Y-%m-%d %H:%M", "%Y-%m-%d_%H-%M-%S%.f"] {
+    for f in [
+        "%Y-%m-%dT%H:%M:%S%.f",
+        "%Y-%m-%d %H:%M:%S%.f",
+        "%Y-%m-%dT%H:%M",
+        "%Y-%m-%d %H:%M",
+        "%Y-%m-%d_%H-%M-%S%.f",
+    ] {
         if let Ok(t) = NaiveDateTime::parse_from_str(s, f) {
             return Ok(t);
         }
@@ -90,11 +114,22 @@ mod tests {
 
     #[test]
     fn timestamps() {
-        let want = NaiveDate::from_ymd_opt(2018, 4, 20).unwrap().and_hms_opt(10, 32, 16).unwrap();
-        for s in ["2018-04-20T10:32:16", "2018-04-20 10:32:16", "2018-04-20T10:32:16+02:00", "2018-04-20_10-32-16"] {
+        let want = NaiveDate::from_ymd_opt(2018, 4, 20)
+            .unwrap()
+            .and_hms_opt(10, 32, 16)
+            .unwrap();
+        for s in [
+            "2018-04-20T10:32:16",
+            "2018-04-20 10:32:16",
+            "2018-04-20T10:32:16+02:00",
+            "2018-04-20_10-32-16",
+        ] {
             assert_eq!(parse_timestamp(s).unwrap(), want, "{s}");
         }
-        assert_eq!(parse_timestamp("2018-04-20").unwrap().format("%H").to_string(), "12");
+        assert_eq!(
+            parse_timestamp("2018-04-20").unwrap().format("%H").to_string(),
+            "12"
+        );
         assert!(parse_timestamp("20/04/2018").is_err());
     }
 
@@ -102,7 +137,11 @@ mod tests {
     fn bad_rows_name_file_and_line() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("obs.csv");
-        std::fs::write(&p, "plant,timestamp,view,leaf_count\nP1,2018-04-20,SV_108,9\nP1,2018-04-21,SV_108,nine\n").unwrap();
+        std::fs::write(
+            &p,
+            "plant,timestamp,view,leaf_count\nP1,2018-04-20,SV_108,9\nP1,2018-04-21,SV_108,nine\n",
+        )
+        .unwrap();
         let err = format!("{:#}", read_rows(&p).unwrap_err());
         assert!(err.contains("obs.csv:3") && err.contains("nine"), "{err}");
         std::fs::write(&p, "plant,time,view,leaf_count\n").unwrap();

@@ -30,7 +30,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .and_then(|h| chrono::DateTime::parse_from_rfc3339(h).ok())
         .map(|h| (chrono::Utc::now() - h.with_timezone(&chrono::Utc)).num_seconds());
     let state = match (svc.get("state").map(String::as_str), heartbeat_age) {
-        (Some("running"), Some(age)) if age > STALE_SECS => format!("not running (last heartbeat {age} s ago)"),
+        (Some("running"), Some(age)) if age > STALE_SECS => {
+            format!("not running (last heartbeat {age} s ago)")
+        }
         (Some(s), _) => s.to_string(),
         (None, _) => "never started".into(),
     };
@@ -39,23 +41,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "state": state,
             "service": svc,
             "images": counts,
-            "last_image": last.as_ref().map(|l| serde_json::json!({"path": l.0, "state": l.1, "at": l.2, "error": l.3})),
+            "last_image": last,
             "recent_failures": failures,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
     }
-    println!("service:   {state} (pid {}, since {})", get("pid"), get("started_at"));
+    println!(
+        "service:   {state} (pid {}, since {})",
+        get("pid"),
+        get("started_at")
+    );
     println!("model:     {}", get("model"));
     println!("drop dir:  {}", config.drop_dir.display());
     println!("database:  {}", config.database.display());
-    println!("queue:     {} queued, {} being counted", get("queued"), get("busy"));
+    println!(
+        "queue:     {} queued, {} being counted",
+        get("queued"),
+        get("busy")
+    );
     println!(
         "images:    {} counted, {} duplicates, {} failed; {} imported counts; {} plants",
         counts.counted, counts.duplicate, counts.failed, counts.imported, counts.plants
     );
     match last {
-        Some((path, st, at, _)) => println!("last:      {path} ({st}, {at})"),
+        Some(l) => println!("last:      {} ({}, {})", l.path, l.state, l.at),
         None => println!("last:      -"),
     }
     for (path, err) in failures {

@@ -40,7 +40,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     match result {
         // A closed pipe (`phyllo tail | head`) is a normal way to stop.
-        Err(e) if e.downcast_ref::<std::io::Error>().is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe) => Ok(()),
+        Err(e)
+            if e.downcast_ref::<std::io::Error>()
+                .is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe) =>
+        {
+            Ok(())
+        }
         r => r,
     }
 }
@@ -57,7 +62,9 @@ const fn libc_sigterm() -> i32 {
 /// on a helper thread (tokio is already a dependency; no extra crate).
 fn signal_hook_flag(sig: i32, flag: Arc<AtomicBool>) {
     std::thread::spawn(move || {
-        let Ok(rt) = tokio::runtime::Builder::new_current_thread().enable_io().build() else { return };
+        let Ok(rt) = tokio::runtime::Builder::new_current_thread().enable_io().build() else {
+            return;
+        };
         rt.block_on(async {
             let kind = tokio::signal::unix::SignalKind::from_raw(sig);
             if let Ok(mut s) = tokio::signal::unix::signal(kind) {

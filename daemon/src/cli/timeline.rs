@@ -29,7 +29,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let Some(t) = store.plant_timeline(&args.plant)? else {
         let plants = store.plants()?;
         let some: Vec<&str> = plants.iter().take(10).map(|s| s.as_str()).collect();
-        bail!("no plant '{}' in {} ({} plants, e.g. {})", args.plant, config.database.display(), plants.len(), some.join(", "));
+        bail!(
+            "no plant '{}' in {} ({} plants, e.g. {})",
+            args.plant,
+            config.database.display(),
+            plants.len(),
+            some.join(", ")
+        );
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&t)?);
@@ -62,7 +68,10 @@ pub fn render(t: &PlantTimeline) -> String {
                 None => s += &format!("{:>8}", "-"),
             }
         }
-        s += &format!("{:>8.1}{:>9.2}{:>8.1}\n", row.fused, row.leaves_emerged, row.living);
+        s += &format!(
+            "{:>8.1}{:>9.2}{:>8.1}\n",
+            row.fused, row.leaves_emerged, row.living
+        );
     }
     s += "emergence events:\n";
     if t.events.is_empty() {

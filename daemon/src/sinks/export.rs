@@ -69,7 +69,9 @@ pub fn export(conn: &Connection, kind: &str, since: Option<&str>, out: &Path) ->
         .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
     let mut stmt = conn.prepare(sql)?;
     let names: Vec<String> = stmt.column_names().iter().map(|s| s.to_string()).collect();
-    let mut w = csv::WriterBuilder::new().terminator(csv::Terminator::CRLF).from_writer(tmp.as_file());
+    let mut w = csv::WriterBuilder::new()
+        .terminator(csv::Terminator::CRLF)
+        .from_writer(tmp.as_file());
     w.write_record(&names)?;
     let mut rows = stmt.query([since])?;
     let mut n = 0;
@@ -89,7 +91,8 @@ pub fn export(conn: &Connection, kind: &str, since: Option<&str>, out: &Path) ->
     w.flush()?;
     drop(w);
     tmp.as_file().sync_all()?;
-    tmp.persist(out).with_context(|| format!("renaming the export into {}", out.display()))?;
+    tmp.persist(out)
+        .with_context(|| format!("renaming the export into {}", out.display()))?;
     Ok(n)
 }
 
@@ -121,7 +124,10 @@ mod tests {
         let conn = Connection::open_in_memory().unwrap();
         let dir = tempfile::tempdir().unwrap();
         let err = export(&conn, "plants", None, &dir.path().join("x.csv")).unwrap_err();
-        assert!(err.to_string().contains("images, sessions, timeline, events"), "{err}");
+        assert!(
+            err.to_string().contains("images, sessions, timeline, events"),
+            "{err}"
+        );
         assert!(!dir.path().join("x.csv").exists());
     }
 }

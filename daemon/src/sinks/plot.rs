@@ -28,7 +28,10 @@ fn register_font() {
 /// The x axis is days since the first session.
 pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
     register_font();
-    let first = t.sessions.first().ok_or_else(|| anyhow!("plant {} has no sessions to plot", t.plant))?;
+    let first = t
+        .sessions
+        .first()
+        .ok_or_else(|| anyhow!("plant {} has no sessions to plot", t.plant))?;
     let t0 = parse_iso(&first.start)?;
     let day = |s: &str| -> anyhow::Result<f64> {
         Ok((parse_iso(s)? - t0).num_milliseconds() as f64 / 86_400_000.0)
@@ -37,13 +40,20 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
     let mut ymax: f64 = 1.0;
     for s in &t.sessions {
         xs.push(day(&s.start)?);
-        ymax = ymax.max(s.views.values().cloned().fold(s.fused.max(s.leaves_emerged), f64::max));
+        ymax = ymax.max(
+            s.views
+                .values()
+                .cloned()
+                .fold(s.fused.max(s.leaves_emerged), f64::max),
+        );
     }
     let xmax = xs.last().cloned().unwrap_or(0.0).max(1.0);
     let root = BitMapBackend::new(out, (1000, 600)).into_drawing_area();
     let err = |e: DrawingAreaErrorKind<_>| anyhow!("drawing {}: {e:?}", out.display());
     root.fill(&WHITE).map_err(err)?;
-    let ph = t.phyllochron_days.map_or("n/a".into(), |p| format!("{p:.2} days/leaf"));
+    let ph = t
+        .phyllochron_days
+        .map_or("n/a".into(), |p| format!("{p:.2} days/leaf"));
     let mut chart = ChartBuilder::on(&root)
         .caption(format!("{} — phyllochron {ph}", t.plant), ("sans-serif", 24))
         .margin(15)
@@ -58,10 +68,18 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
         .label_style(("sans-serif", 14))
         .draw()
         .map_err(err)?;
-    let views: Vec<(f64, f64)> =
-        t.sessions.iter().zip(&xs).flat_map(|(s, &x)| s.views.values().map(move |&c| (x, c))).collect();
+    let views: Vec<(f64, f64)> = t
+        .sessions
+        .iter()
+        .zip(&xs)
+        .flat_map(|(s, &x)| s.views.values().map(move |&c| (x, c)))
+        .collect();
     chart
-        .draw_series(views.iter().map(|&p| Circle::new(p, 3, RGBColor(150, 150, 150).filled())))
+        .draw_series(
+            views
+                .iter()
+                .map(|&p| Circle::new(p, 3, RGBColor(150, 150, 150).filled())),
+        )
         .map_err(err)?
         .label("per view")
         .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(150, 150, 150).filled()));
@@ -93,7 +111,10 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
         let x = day(at)?;
         let y = *leaf as f64;
         chart
-            .draw_series(std::iter::once(PathElement::new(vec![(x, y - 0.4), (x, y + 0.4)], RED.stroke_width(2))))
+            .draw_series(std::iter::once(PathElement::new(
+                vec![(x, y - 0.4), (x, y + 0.4)],
+                RED.stroke_width(2),
+            )))
             .map_err(err)?;
     }
     chart
@@ -104,6 +125,7 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
         .label_font(("sans-serif", 14))
         .draw()
         .map_err(err)?;
-    root.present().with_context(|| format!("writing {}", out.display()))?;
+    root.present()
+        .with_context(|| format!("writing {}", out.display()))?;
     Ok(())
 }

@@ -20,7 +20,14 @@ pub fn format_row(r: &FeedRow) -> String {
     let new = if r.new_leaves.is_empty() {
         String::new()
     } else {
-        format!("  new leaves {}", r.new_leaves.iter().map(|l| l.to_string()).collect::<Vec<_>>().join(","))
+        format!(
+            "  new leaves {}",
+            r.new_leaves
+                .iter()
+                .map(|l| l.to_string())
+                .collect::<Vec<_>>()
+                .join(",")
+        )
     };
     let num = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
     match r.kind.as_str() {
@@ -32,10 +39,24 @@ pub fn format_row(r: &FeedRow) -> String {
             num(r.fused),
             num(r.leaves_emerged),
         ),
-        "event" => format!("{}  {plant}  EVENT  {}", r.taken_at.as_deref().unwrap_or("-"), r.message.as_deref().unwrap_or("")),
-        "import" => format!("{}  {plant}  IMPORT  fused {}  emerged {}{new}", r.at, num(r.fused), num(r.leaves_emerged)),
+        "event" => format!(
+            "{}  {plant}  EVENT  {}",
+            r.taken_at.as_deref().unwrap_or("-"),
+            r.message.as_deref().unwrap_or("")
+        ),
+        "import" => format!(
+            "{}  {plant}  IMPORT  fused {}  emerged {}{new}",
+            r.at,
+            num(r.fused),
+            num(r.leaves_emerged)
+        ),
         "failed" => format!("{}  FAILED  {}", r.at, r.message.as_deref().unwrap_or("")),
-        _ => format!("{}  {}  {}", r.at, r.kind.to_uppercase(), r.message.as_deref().unwrap_or("")),
+        _ => format!(
+            "{}  {}  {}",
+            r.at,
+            r.kind.to_uppercase(),
+            r.message.as_deref().unwrap_or("")
+        ),
     }
 }
 

@@ -105,7 +105,15 @@ impl Intake {
                 }
             }
             None => {
-                self.pending.insert(path, Pending { size, mtime, quiet, since: now });
+                self.pending.insert(
+                    path,
+                    Pending {
+                        size,
+                        mtime,
+                        quiet,
+                        since: now,
+                    },
+                );
             }
         }
     }
@@ -127,8 +135,14 @@ impl Intake {
                 continue;
             }
             // An empty file is most likely one a writer has just created.
-            let quiet = if size == 0 { p.quiet.max(self.stable) } else { p.quiet };
-            let age = mtime.and_then(|m| SystemTime::now().duration_since(m).ok()).unwrap_or_default();
+            let quiet = if size == 0 {
+                p.quiet.max(self.stable)
+            } else {
+                p.quiet
+            };
+            let age = mtime
+                .and_then(|m| SystemTime::now().duration_since(m).ok())
+                .unwrap_or_default();
             if now.duration_since(p.since) >= quiet || age >= quiet {
                 ready.push(path.clone());
             }
@@ -144,7 +158,9 @@ impl Intake {
                 continue; // still being processed: look again at the next tick
             }
             let p = self.pending.remove(&path).expect("ready paths are pending");
-            let Some(rel) = self.filter.rel(&path) else { continue };
+            let Some(rel) = self.filter.rel(&path) else {
+                continue;
+            };
             let meta = match std::fs::metadata(&path) {
                 Ok(m) => m,
                 Err(_) => continue,
@@ -154,9 +170,15 @@ impl Intake {
                 Ok(false) => {}
                 Err(e) => tracing::warn!("database lookup for {rel}: {e:#}"),
             }
-            self.in_flight.lock().expect("in_flight lock").insert(path.clone());
+            self.in_flight
+                .lock()
+                .expect("in_flight lock")
+                .insert(path.clone());
             self.stats.queued.fetch_add(1, Ordering::Relaxed);
-            let job = Job { path: path.clone(), rel };
+            let job = Job {
+                path: path.clone(),
+                rel,
+            };
             tokio::select! {
                 r = self.jobs.send(job) => {
                     if r.is_err() {

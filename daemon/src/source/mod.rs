@@ -45,7 +45,11 @@ impl Filter {
     pub fn new(root: &Path, cfg: &WatchConfig) -> Filter {
         Filter {
             root: root.to_path_buf(),
-            extensions: cfg.extensions.iter().map(|e| e.trim_start_matches('.').to_ascii_lowercase()).collect(),
+            extensions: cfg
+                .extensions
+                .iter()
+                .map(|e| e.trim_start_matches('.').to_ascii_lowercase())
+                .collect(),
             ignore_hidden: cfg.ignore_hidden,
         }
     }
@@ -58,7 +62,10 @@ impl Filter {
     /// Path relative to the drop directory with `/` separators, if inside it.
     pub fn rel(&self, path: &Path) -> Option<String> {
         let rel = path.strip_prefix(&self.root).ok()?;
-        let parts: Vec<String> = rel.components().map(|c| c.as_os_str().to_string_lossy().into_owned()).collect();
+        let parts: Vec<String> = rel
+            .components()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned())
+            .collect();
         if parts.is_empty() {
             return None;
         }
@@ -75,13 +82,17 @@ impl Filter {
         if self.ignore_hidden && self.hidden(path) {
             return false;
         }
-        let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
         self.extensions.contains(&ext)
     }
 
     fn hidden(&self, path: &Path) -> bool {
         let rel = path.strip_prefix(&self.root).unwrap_or(path);
-        rel.components().any(|c| c.as_os_str().to_string_lossy().starts_with('.'))
+        rel.components()
+            .any(|c| c.as_os_str().to_string_lossy().starts_with('.'))
     }
 }
 

@@ -24,7 +24,9 @@ pub fn scan(filter: &Filter, dir: &Path) -> Vec<PathBuf> {
         for entry in entries.flatten() {
             let path = entry.path();
             // file_type() does not follow symlinks; metadata() does, so links to images count.
-            let Ok(meta) = std::fs::metadata(&path) else { continue };
+            let Ok(meta) = std::fs::metadata(&path) else {
+                continue;
+            };
             if meta.is_dir() {
                 if filter.wants_dir(&path) && !entry.file_type().map(|t| t.is_symlink()).unwrap_or(false) {
                     stack.push(path);
@@ -49,11 +51,20 @@ mod tests {
         let root = dir.path();
         std::fs::create_dir_all(root.join("snap/Vis_SV_0")).unwrap();
         std::fs::create_dir_all(root.join(".partial")).unwrap();
-        for f in ["a.png", "snap/Vis_SV_0/0_0_0.png", "snap/readme.txt", ".partial/b.png", ".c.png"] {
+        for f in [
+            "a.png",
+            "snap/Vis_SV_0/0_0_0.png",
+            "snap/readme.txt",
+            ".partial/b.png",
+            ".c.png",
+        ] {
             std::fs::write(root.join(f), b"x").unwrap();
         }
         let filter = Filter::new(root, &WatchConfig::default());
-        let found: Vec<String> = scan(&filter, root).iter().map(|p| filter.rel(p).unwrap()).collect();
+        let found: Vec<String> = scan(&filter, root)
+            .iter()
+            .map(|p| filter.rel(p).unwrap())
+            .collect();
         assert_eq!(found, vec!["a.png", "snap/Vis_SV_0/0_0_0.png"]);
         assert!(scan(&filter, &root.join("missing")).is_empty());
     }

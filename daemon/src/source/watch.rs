@@ -39,7 +39,11 @@ impl Watch {
         watcher
             .watch(&root, RecursiveMode::Recursive)
             .map_err(|e| anyhow::anyhow!("watching drop directory {}: {e}", root.display()))?;
-        Ok(Watch { _watcher: watcher, root, root_id: (meta.dev(), meta.ino()) })
+        Ok(Watch {
+            _watcher: watcher,
+            root,
+            root_id: (meta.dev(), meta.ino()),
+        })
     }
 
     /// True if the watched directory is gone or was replaced by another one
@@ -83,15 +87,23 @@ fn classify(filter: &Filter, res: notify::Result<Event>) -> Vec<Candidate> {
         EventKind::Modify(ModifyKind::Name(RenameMode::Both)) if paths.len() == 2 => {
             vec![Some(Candidate::Removed(paths[0].clone())), moved_in(&paths[1])]
         }
-        EventKind::Modify(ModifyKind::Name(RenameMode::From)) | EventKind::Remove(_) => {
-            paths.iter().map(|p| Some(Candidate::Removed(p.clone()))).collect()
-        }
-        EventKind::Create(CreateKind::Folder) => {
-            paths.iter().map(|p| filter.wants_dir(p).then(|| Candidate::ScanDir(p.clone()))).collect()
-        }
+        EventKind::Modify(ModifyKind::Name(RenameMode::From)) | EventKind::Remove(_) => paths
+            .iter()
+            .map(|p| Some(Candidate::Removed(p.clone())))
+            .collect(),
+        EventKind::Create(CreateKind::Folder) => paths
+            .iter()
+            .map(|p| filter.wants_dir(p).then(|| Candidate::ScanDir(p.clone())))
+            .collect(),
         EventKind::Create(_) | EventKind::Modify(_) => paths
             .iter()
-            .map(|p| if p.is_dir() { None } else { file(p, Candidate::Changed) })
+            .map(|p| {
+                if p.is_dir() {
+                    None
+                } else {
+                    file(p, Candidate::Changed)
+                }
+            })
             .collect(),
         _ => vec![],
     };

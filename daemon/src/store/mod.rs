@@ -29,7 +29,7 @@ use rusqlite::{params, Connection, OpenFlags, OptionalExtension, Transaction, Tr
 use crate::names::{ParsedName, View};
 use crate::timeline::{self, Obs, TimelineParams};
 
-pub use queries::{FeedRow, ImageCounts, PlantTimeline};
+pub use queries::{FeedRow, ImageCounts, LastImage, PlantTimeline, SessionRow};
 
 /// Formats a facility time the way the database and exports store it.
 pub fn iso(t: NaiveDateTime) -> String {
@@ -129,13 +129,18 @@ impl Store {
     /// Opens (creating if needed) a database for writing and migrates it.
     pub fn open(path: &Path, tl: &crate::config::TimelineConfig, max_attempts: u32) -> anyhow::Result<Store> {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).with_context(|| format!("creating database directory {}", dir.display()))?;
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("creating database directory {}", dir.display()))?;
         }
-        let mut conn = Connection::open(path).with_context(|| format!("opening database {}", path.display()))?;
+        let mut conn =
+            Connection::open(path).with_context(|| format!("opening database {}", path.display()))?;
         conn.busy_timeout(Duration::from_secs(30))?;
         let mode: String = conn.pragma_update_and_check(None, "journal_mode", "WAL", |r| r.get(0))?;
         if !mode.eq_ignore_ascii_case("wal") {
-            bail!("database {}: could not switch to WAL mode (got {mode})", path.display());
+            bail!(
+                "database {}: could not switch to WAL mode (got {mode})",
+                path.display()
+            );
         }
         // WAL + NORMAL is durable across application crashes; a power cut may lose the last
         // transactions, which the next rescan recounts.
@@ -153,13 +158,24 @@ impl Store {
     /// Opens an existing database read-only (tail, status, export, timeline).
     pub fn open_read_only(path: &Path) -> anyhow::Result<Store> {
         if !path.exists() {
-            bail!("database {} does not exist (has `phyllo serve` run yet?)", path.display());
+            bail!(
+                "database {} does not exist (has `phyllo serve` run yet?)",
+                path.display()
+            );
         }
-        let conn = Connection::open_with_flags(path, OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX)
-            .with_context(|| format!("opening database {} read-only", path.display()))?;
+        let conn = Connection::open_with_flags(
+            path,
+            OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+        )
+        .with_context(|| format!("opening database {} read-only", path.display()))?;
         conn.busy_timeout(Duration::from_secs(10))?;
         migrations::check_version(&conn).with_context(|| format!("database {}", path.display()))?;
-        Ok(Store { conn, params: TimelineParams::default(), fusion_name: String::new(), max_attempts: 0 })
+        Ok(Store {
+            conn,
+            params: TimelineParams::default(),
+            fusion_name: String::new(),
+            max_attempts: 0,
+        })
     }
 
     /// The underlying connection, for read queries of the sinks.
@@ -189,7 +205,9 @@ impl Store {
     /// content at the same path: skip (and remember the new mtime). Content
     /// already counted elsewhere: recorded here as a duplicate, skip.
     pub fn precheck(&mut self, f: &FileFacts) -> anyhow::Result<Precheck> {
-        let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
         let latest = latest_version(&tx, &f.rel)?;
         if let Some(l) = &latest {
             if l.sha256 == f.sha256 {
@@ -200,7 +218,10 @@ impl Store {
                 tx.commit()?;
                 let done = l.state != "failed" || l.retry == 0 || l.attempts >= self.max_attempts;
                 return Ok(if done {
-                    Precheck::Skip(format!("{} unchanged (version {}, {})", f.rel, l.version, l.state))
+                    Precheck::Skip(format!(
+                        "{} unchanged (version {}, {})",
+                        f.rel, l.version, l.state
+                    ))
                 } else {
                     Precheck::Process
                 });
@@ -210,7 +231,10 @@ impl Store {
             let stale = insert_duplicate(&tx, f, latest.as_ref(), orig_id, &orig_path)?;
             refresh(&tx, &self.params, &self.fusion_name, &stale, None)?;
             tx.commit()?;
-            return Ok(Precheck::Skip(format!("{} has the same content as {orig_path}", f.rel)));
+            return Ok(Precheck::Skip(format!(
+                "{} has the same content as {orig_path}",
+                f.rel
+            )));
         }
         Ok(Precheck::Process)
     }
@@ -219,7 +243,9 @@ impl Store {
     /// timeline when it was counted.
     pub fn record(&mut self, f: &FileFacts, outcome: Outcome<'_>) -> anyhow::Result<Recorded> {
         let now = now_utc();
-        let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
         let latest = latest_version(&tx, &f.rel)?;
         let same = latest.as_ref().filter(|l| l.sha256 == f.sha256);
         let recorded = match outcome {
@@ -234,8 +260,16 @@ impl Store {
                     }
                 }
                 let plant_id = upsert_plant(&tx, &name.plant, &now)?;
-                let (image_id, stale) =
-                    write_image(&tx, f, latest.as_ref(), Some((plant_id, name)), "counted", None, false, &now)?;
+                let (image_id, stale) = write_image(
+                    &tx,
+                    f,
+                    latest.as_ref(),
+                    Some((plant_id, name)),
+                    "counted",
+                    None,
+                    false,
+                    &now,
+                )?;
                 refresh(&tx, &self.params, &self.fusion_name, &stale, Some(plant_id))?;
                 tx.execute(
                     "INSERT INTO observations (image_id, plant_id, taken_at, view, leaf_count, instances, model_id,
@@ -271,14 +305,27 @@ impl Store {
                     },
                     &now,
                 )?;
-                Recorded::Counted { fused, emerged, new_leaves: diff.new_leaves }
+                Recorded::Counted {
+                    fused,
+                    emerged,
+                    new_leaves: diff.new_leaves,
+                }
             }
             Outcome::Failed { name, error, retry } => {
                 let plant = match name {
                     Some(n) => Some((upsert_plant(&tx, &n.plant, &now)?, n)),
                     None => None,
                 };
-                let (_, stale) = write_image(&tx, f, latest.as_ref(), plant, "failed", Some(&error), retry, &now)?;
+                let (_, stale) = write_image(
+                    &tx,
+                    f,
+                    latest.as_ref(),
+                    plant,
+                    "failed",
+                    Some(&error),
+                    retry,
+                    &now,
+                )?;
                 refresh(&tx, &self.params, &self.fusion_name, &stale, None)?;
                 push_feed(
                     &tx,
@@ -301,10 +348,16 @@ impl Store {
     /// Ingests counts made elsewhere, in one transaction. Re-importing the
     /// same row (plant, time, view, source) replaces its count rather than
     /// adding a second one. Returns (rows, plants).
-    pub fn import(&mut self, source: &str, rows: &[(String, NaiveDateTime, View, u32)]) -> anyhow::Result<(usize, usize)> {
+    pub fn import(
+        &mut self,
+        source: &str,
+        rows: &[(String, NaiveDateTime, View, u32)],
+    ) -> anyhow::Result<(usize, usize)> {
         let now = now_utc();
         let model_id = format!("import:{source}");
-        let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
         let mut plants: BTreeMap<String, i64> = BTreeMap::new();
         for (plant, taken_at, view, count) in rows {
             let pid = match plants.get(plant) {
@@ -359,7 +412,9 @@ impl Store {
     /// Recomputes every plant's timeline (e.g. after the fusion rule changed).
     pub fn recompute_all(&mut self) -> anyhow::Result<usize> {
         let now = now_utc();
-        let tx = self.conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
         let plants: Vec<(i64, String)> = tx
             .prepare("SELECT id, name FROM plants ORDER BY id")?
             .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))?
@@ -417,13 +472,18 @@ fn latest_version(tx: &Transaction, rel: &str) -> anyhow::Result<Option<Latest>>
 
 fn counted_with_hash(tx: &Transaction, sha: &str) -> anyhow::Result<Option<(i64, String)>> {
     Ok(tx
-        .prepare_cached("SELECT id, path FROM images WHERE sha256 = ?1 AND state = 'counted' ORDER BY id LIMIT 1")?
+        .prepare_cached(
+            "SELECT id, path FROM images WHERE sha256 = ?1 AND state = 'counted' ORDER BY id LIMIT 1",
+        )?
         .query_row([sha], |r| Ok((r.get(0)?, r.get(1)?)))
         .optional()?)
 }
 
 fn upsert_plant(tx: &Transaction, name: &str, now: &str) -> anyhow::Result<i64> {
-    tx.execute("INSERT INTO plants (name, first_seen) VALUES (?1, ?2) ON CONFLICT (name) DO NOTHING", params![name, now])?;
+    tx.execute(
+        "INSERT INTO plants (name, first_seen) VALUES (?1, ?2) ON CONFLICT (name) DO NOTHING",
+        params![name, now],
+    )?;
     Ok(tx.query_row("SELECT id FROM plants WHERE name = ?1", [name], |r| r.get(0))?)
 }
 
@@ -436,13 +496,19 @@ fn insert_duplicate(
 ) -> anyhow::Result<Vec<(i64, String)>> {
     let now = now_utc();
     let (id, stale) = write_image(tx, f, latest, None, "duplicate", None, false, &now)?;
-    tx.execute("UPDATE images SET duplicate_of = ?2 WHERE id = ?1", params![id, orig_id])?;
+    tx.execute(
+        "UPDATE images SET duplicate_of = ?2 WHERE id = ?1",
+        params![id, orig_id],
+    )?;
     push_feed(
         tx,
         &FeedRow {
             kind: "duplicate".into(),
             path: Some(f.rel.clone()),
-            message: Some(format!("{} has the same content as {orig_path}; not counted again", f.rel)),
+            message: Some(format!(
+                "{} has the same content as {orig_path}; not counted again",
+                f.rel
+            )),
             ..FeedRow::default()
         },
         &now,
@@ -473,7 +539,19 @@ fn write_image(
         tx.execute(
             "UPDATE images SET size = ?2, mtime = ?3, plant_id = ?4, taken_at = ?5, view = ?6, state = ?7,
                  error = ?8, retry = ?9, attempts = attempts + ?10, updated_at = ?11 WHERE id = ?1",
-            params![l.id, f.size as i64, f.mtime, plant_id, taken_at, view, state, error, retry, attempts, now],
+            params![
+                l.id,
+                f.size as i64,
+                f.mtime,
+                plant_id,
+                taken_at,
+                view,
+                state,
+                error,
+                retry,
+                attempts,
+                now
+            ],
         )?;
         return Ok((l.id, Vec::new()));
     }
@@ -482,7 +560,10 @@ fn write_image(
     if let Some(l) = latest {
         // A new version takes the older ones' counts out of the timeline; the caller
         // recomputes the plants they belonged to.
-        tx.execute("UPDATE images SET superseded = 1 WHERE path = ?1 AND id <= ?2", params![f.rel, l.id])?;
+        tx.execute(
+            "UPDATE images SET superseded = 1 WHERE path = ?1 AND id <= ?2",
+            params![f.rel, l.id],
+        )?;
         stale = tx
             .prepare(
                 "SELECT DISTINCT p.id, p.name FROM images i JOIN plants p ON p.id = i.plant_id
@@ -495,7 +576,21 @@ fn write_image(
         "INSERT INTO images (path, version, size, mtime, sha256, plant_id, taken_at, view, state, error,
              attempts, retry, first_seen, updated_at)
          VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?13)",
-        params![f.rel, version, f.size as i64, f.mtime, f.sha256, plant_id, taken_at, view, state, error, attempts, retry, now],
+        params![
+            f.rel,
+            version,
+            f.size as i64,
+            f.mtime,
+            f.sha256,
+            plant_id,
+            taken_at,
+            view,
+            state,
+            error,
+            attempts,
+            retry,
+            now
+        ],
     )?;
     Ok((tx.last_insert_rowid(), stale))
 }
@@ -509,7 +604,12 @@ struct Diff {
 impl Diff {
     /// Fused count and leaves emerged of the session holding time `t`.
     fn at(&self, t: NaiveDateTime) -> (f64, f64) {
-        self.sessions.iter().rev().find(|s| s.2 <= t).or(self.sessions.first()).map_or((0.0, 0.0), |s| (s.0, s.1))
+        self.sessions
+            .iter()
+            .rev()
+            .find(|s| s.2 <= t)
+            .or(self.sessions.first())
+            .map_or((0.0, 0.0), |s| (s.0, s.1))
     }
 }
 
@@ -563,8 +663,10 @@ fn recompute(
     }
     let mut new_leaves = Vec::new();
     for e in &tl.events {
-        tx.prepare_cached("INSERT INTO events (plant_id, leaf, emerged_at, seen_at) VALUES (?1, ?2, ?3, ?4)")?
-            .execute(params![plant_id, e.leaf, iso(e.at), iso(e.seen_at)])?;
+        tx.prepare_cached(
+            "INSERT INTO events (plant_id, leaf, emerged_at, seen_at) VALUES (?1, ?2, ?3, ?4)",
+        )?
+        .execute(params![plant_id, e.leaf, iso(e.at), iso(e.seen_at)])?;
         if !old.contains(&e.leaf) {
             new_leaves.push(e.leaf);
             push_feed(
@@ -575,7 +677,11 @@ fn recompute(
                     taken_at: Some(iso(e.at)),
                     leaves_emerged: Some(e.leaf as f64),
                     new_leaves: vec![e.leaf],
-                    message: Some(format!("leaf {} emerged about {}", e.leaf, e.at.format("%Y-%m-%d %H:%M"))),
+                    message: Some(format!(
+                        "leaf {} emerged about {}",
+                        e.leaf,
+                        e.at.format("%Y-%m-%d %H:%M")
+                    )),
                     ..FeedRow::default()
                 },
                 now,
@@ -596,7 +702,14 @@ fn recompute(
             now
         ],
     )?;
-    Ok(Diff { new_leaves, sessions: tl.sessions.iter().map(|s| (s.fused, s.emerged, s.start)).collect() })
+    Ok(Diff {
+        new_leaves,
+        sessions: tl
+            .sessions
+            .iter()
+            .map(|s| (s.fused, s.emerged, s.start))
+            .collect(),
+    })
 }
 
 fn push_feed(tx: &Transaction, row: &FeedRow, now: &str) -> anyhow::Result<()> {

@@ -52,6 +52,19 @@ pub struct ImageCounts {
     pub plants: i64,
 }
 
+/// The most recently recorded image.
+#[derive(Debug, Clone, Serialize)]
+pub struct LastImage {
+    /// Path relative to the drop directory.
+    pub path: String,
+    /// `counted`, `duplicate` or `failed`.
+    pub state: String,
+    /// When it was recorded (UTC).
+    pub at: String,
+    /// Why it failed, if it did.
+    pub error: Option<String>,
+}
+
 /// Everything `phyllo timeline` shows for one plant.
 #[derive(Debug, Clone, Serialize)]
 pub struct PlantTimeline {
@@ -92,7 +105,9 @@ fn feed_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<FeedRow> {
         leaf_count: r.get(6)?,
         fused: r.get(7)?,
         leaves_emerged: r.get(8)?,
-        new_leaves: new_leaves.and_then(|s| serde_json::from_str(&s).ok()).unwrap_or_default(),
+        new_leaves: new_leaves
+            .and_then(|s| serde_json::from_str(&s).ok())
+            .unwrap_or_default(),
         path: r.get(10)?,
         message: r.get(11)?,
     })
@@ -105,19 +120,25 @@ impl Store {
             "SELECT seq, at, kind, plant, taken_at, view, leaf_count, fused, leaves_emerged, new_leaves, path, message
              FROM feed WHERE seq > ?1 AND (?2 IS NULL OR plant = ?2) ORDER BY seq LIMIT ?3",
         )?;
-        let rows = stmt.query_map(params![seq, plant, limit as i64], feed_row)?.collect::<Result<_, _>>()?;
+        let rows = stmt
+            .query_map(params![seq, plant, limit as i64], feed_row)?
+            .collect::<Result<_, _>>()?;
         Ok(rows)
     }
 
     /// The newest feed position (0 when empty).
     pub fn feed_head(&self) -> anyhow::Result<i64> {
-        Ok(self.conn.query_row("SELECT COALESCE(MAX(seq), 0) FROM feed", [], |r| r.get(0))?)
+        Ok(self
+            .conn
+            .query_row("SELECT COALESCE(MAX(seq), 0) FROM feed", [], |r| r.get(0))?)
     }
 
     /// Images per state, imported observations and plants.
     pub fn image_counts(&self) -> anyhow::Result<ImageCounts> {
         let mut c = ImageCounts::default();
-        let mut stmt = self.conn.prepare("SELECT state, COUNT(*) FROM images GROUP BY state")?;
+        let mut stmt = self
+            .conn
+            .prepare("SELECT state, COUNT(*) FROM images GROUP BY state")?;
         for row in stmt.query_map([], |r| Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)?)))? {
             let (state, n) = row?;
             match state.as_str() {
@@ -127,19 +148,32 @@ impl Store {
                 _ => {}
             }
         }
-        c.imported = self.conn.query_row("SELECT COUNT(*) FROM observations WHERE image_id IS NULL", [], |r| r.get(0))?;
-        c.plants = self.conn.query_row("SELECT COUNT(*) FROM plants", [], |r| r.get(0))?;
+        c.imported = self.conn.query_row(
+            "SELECT COUNT(*) FROM observations WHERE image_id IS NULL",
+            [],
+            |r| r.get(0),
+        )?;
+        c.plants = self
+            .conn
+            .query_row("SELECT COUNT(*) FROM plants", [], |r| r.get(0))?;
         Ok(c)
     }
 
-    /// The most recently recorded image: (path, state, updated_at, error).
-    pub fn last_image(&self) -> anyhow::Result<Option<(String, String, String, Option<String>)>> {
+    /// The most recently recorded image.
+    pub fn last_image(&self) -> anyhow::Result<Option<LastImage>> {
         Ok(self
             .conn
             .query_row(
                 "SELECT path, state, updated_at, error FROM images ORDER BY updated_at DESC, id DESC LIMIT 1",
                 [],
-                |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?)),
+                |r| {
+                    Ok(LastImage {
+                        path: r.get(0)?,
+                        state: r.get(1)?,
+                        at: r.get(2)?,
+                        error: r.get(3)?,
+                    })
+                },
             )
             .optional()?)
     }
@@ -149,14 +183,18 @@ impl Store {
         let mut stmt = self.conn.prepare(
             "SELECT path, COALESCE(error, '') FROM images WHERE state = 'failed' ORDER BY updated_at DESC LIMIT ?1",
         )?;
-        let rows = stmt.query_map([n as i64], |r| Ok((r.get(0)?, r.get(1)?)))?.collect::<Result<_, _>>()?;
+        let rows = stmt
+            .query_map([n as i64], |r| Ok((r.get(0)?, r.get(1)?)))?
+            .collect::<Result<_, _>>()?;
         Ok(rows)
     }
 
     /// The service's self-report (key → value).
     pub fn service(&self) -> anyhow::Result<BTreeMap<String, String>> {
         let mut stmt = self.conn.prepare("SELECT key, value FROM service")?;
-        let rows = stmt.query_map([], |r| Ok((r.get(0)?, r.get(1)?)))?.collect::<Result<_, _>>()?;
+        let rows = stmt
+            .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))?
+            .collect::<Result<_, _>>()?;
         Ok(rows)
     }
 
@@ -171,9 +209,11 @@ impl Store {
     pub fn plant_timeline(&self, plant: &str) -> anyhow::Result<Option<PlantTimeline>> {
         let Some((id, phyllochron_days)) = self
             .conn
-            .query_row("SELECT id, phyllochron_days FROM plants WHERE name = ?1", [plant], |r| {
-                Ok((r.get::<_, i64>(0)?, r.get(1)?))
-            })
+            .query_row(
+                "SELECT id, phyllochron_days FROM plants WHERE name = ?1",
+                [plant],
+                |r| Ok((r.get::<_, i64>(0)?, r.get(1)?)),
+            )
             .optional()?
         else {
             return Ok(None);
@@ -183,17 +223,37 @@ impl Store {
         )?;
         let sessions = stmt
             .query_map([id], |r| {
-                Ok((r.get::<_, String>(0)?, r.get::<_, String>(1)?, r.get(2)?, r.get(3)?, r.get(4)?))
+                Ok((
+                    r.get::<_, String>(0)?,
+                    r.get::<_, String>(1)?,
+                    r.get(2)?,
+                    r.get(3)?,
+                    r.get(4)?,
+                ))
             })?
             .map(|row| {
                 let (start, views, fused, leaves_emerged, living) = row?;
                 let views = serde_json::from_str(&views).context("sessions.views")?;
-                Ok(SessionRow { start, views, fused, leaves_emerged, living })
+                Ok(SessionRow {
+                    start,
+                    views,
+                    fused,
+                    leaves_emerged,
+                    living,
+                })
             })
             .collect::<anyhow::Result<_>>()?;
-        let mut stmt =
-            self.conn.prepare("SELECT leaf, emerged_at, seen_at FROM events WHERE plant_id = ?1 ORDER BY leaf")?;
-        let events = stmt.query_map([id], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))?.collect::<Result<_, _>>()?;
-        Ok(Some(PlantTimeline { plant: plant.to_string(), phyllochron_days, sessions, events }))
+        let mut stmt = self
+            .conn
+            .prepare("SELECT leaf, emerged_at, seen_at FROM events WHERE plant_id = ?1 ORDER BY leaf")?;
+        let events = stmt
+            .query_map([id], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))?
+            .collect::<Result<_, _>>()?;
+        Ok(Some(PlantTimeline {
+            plant: plant.to_string(),
+            phyllochron_days,
+            sessions,
+            events,
+        }))
     }
 }

@@ -17,11 +17,20 @@ fn db(dir: &tempfile::TempDir) -> PathBuf {
 }
 
 fn day(i: i64) -> NaiveDateTime {
-    NaiveDate::from_ymd_opt(2018, 4, 20).unwrap().and_hms_opt(10, 0, 0).unwrap() + Duration::days(i)
+    NaiveDate::from_ymd_opt(2018, 4, 20)
+        .unwrap()
+        .and_hms_opt(10, 0, 0)
+        .unwrap()
+        + Duration::days(i)
 }
 
 fn name(plant: &str, t: NaiveDateTime, view: View) -> ParsedName {
-    ParsedName { plant: plant.into(), taken_at: t, view, pattern: "flat".into() }
+    ParsedName {
+        plant: plant.into(),
+        taken_at: t,
+        view,
+        pattern: "flat".into(),
+    }
 }
 
 fn facts(rel: &str, content: &str) -> FileFacts {
@@ -44,7 +53,9 @@ fn count(n: u32) -> CountRecord {
 }
 
 fn n_obs(s: &Store) -> i64 {
-    s.conn().query_row("SELECT COUNT(*) FROM observations", [], |r| r.get(0)).unwrap()
+    s.conn()
+        .query_row("SELECT COUNT(*) FROM observations", [], |r| r.get(0))
+        .unwrap()
 }
 
 #[test]
@@ -53,11 +64,35 @@ fn counted_image_lands_with_timeline_and_feed() {
     let mut s = open(&dir);
     let f = facts("P1_a.png", "a");
     assert_eq!(s.precheck(&f).unwrap(), Precheck::Process);
-    let r = s.record(&f, Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8))).unwrap();
-    assert_eq!(r, Recorded::Counted { fused: 8.0, emerged: 8.0, new_leaves: vec![] });
+    let r = s
+        .record(
+            &f,
+            Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8)),
+        )
+        .unwrap();
+    assert_eq!(
+        r,
+        Recorded::Counted {
+            fused: 8.0,
+            emerged: 8.0,
+            new_leaves: vec![]
+        }
+    );
     let f2 = facts("P1_b.png", "b");
-    let r = s.record(&f2, Outcome::Counted(&name("P1", day(1), View::Side(0)), &count(10))).unwrap();
-    assert_eq!(r, Recorded::Counted { fused: 10.0, emerged: 10.0, new_leaves: vec![9, 10] });
+    let r = s
+        .record(
+            &f2,
+            Outcome::Counted(&name("P1", day(1), View::Side(0)), &count(10)),
+        )
+        .unwrap();
+    assert_eq!(
+        r,
+        Recorded::Counted {
+            fused: 10.0,
+            emerged: 10.0,
+            new_leaves: vec![9, 10]
+        }
+    );
     let t = s.plant_timeline("P1").unwrap().unwrap();
     assert_eq!(t.sessions.len(), 2);
     assert_eq!(t.events.len(), 2);
@@ -74,7 +109,11 @@ fn same_content_is_never_counted_twice() {
     let dir = tempfile::tempdir().unwrap();
     let mut s = open(&dir);
     let f = facts("P1_a.png", "a");
-    s.record(&f, Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8))).unwrap();
+    s.record(
+        &f,
+        Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8)),
+    )
+    .unwrap();
     // Same path, same content (touched, or rescanned after a restart).
     assert!(matches!(s.precheck(&f).unwrap(), Precheck::Skip(_)));
     assert!(s.is_known("P1_a.png", 1, "mtime-of-a").unwrap());
@@ -83,7 +122,12 @@ fn same_content_is_never_counted_twice() {
     assert!(matches!(s.precheck(&copy).unwrap(), Precheck::Skip(why) if why.contains("same content")));
     // Even if two workers raced past the precheck, the write re-checks.
     let copy2 = facts("copy2/P1_a.png", "a");
-    let r = s.record(&copy2, Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8))).unwrap();
+    let r = s
+        .record(
+            &copy2,
+            Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8)),
+        )
+        .unwrap();
     assert_eq!(r, Recorded::Duplicate("P1_a.png".into()));
     assert_eq!(n_obs(&s), 1);
     let c = s.image_counts().unwrap();
@@ -100,8 +144,13 @@ fn changed_file_is_a_new_version_and_replaces_the_count() {
     let dir = tempfile::tempdir().unwrap();
     let mut s = open(&dir);
     let n0 = name("P1", day(0), View::Side(0));
-    s.record(&facts("P1_a.png", "v1"), Outcome::Counted(&n0, &count(8))).unwrap();
-    s.record(&facts("P1_b.png", "b"), Outcome::Counted(&name("P1", day(1), View::Side(0)), &count(9))).unwrap();
+    s.record(&facts("P1_a.png", "v1"), Outcome::Counted(&n0, &count(8)))
+        .unwrap();
+    s.record(
+        &facts("P1_b.png", "b"),
+        Outcome::Counted(&name("P1", day(1), View::Side(0)), &count(9)),
+    )
+    .unwrap();
     let v2 = facts("P1_a.png", "v2");
     assert_eq!(s.precheck(&v2).unwrap(), Precheck::Process);
     s.record(&v2, Outcome::Counted(&n0, &count(6))).unwrap();
@@ -119,8 +168,15 @@ fn changed_file_is_a_new_version_and_replaces_the_count() {
     let t = s.plant_timeline("P1").unwrap().unwrap();
     assert_eq!(t.sessions[0].fused, 6.0);
     // A version that turns out undecodable also takes the old count out.
-    s.record(&facts("P1_b.png", "broken"), Outcome::Failed { name: None, error: "bad".into(), retry: false })
-        .unwrap();
+    s.record(
+        &facts("P1_b.png", "broken"),
+        Outcome::Failed {
+            name: None,
+            error: "bad".into(),
+            retry: false,
+        },
+    )
+    .unwrap();
     let t = s.plant_timeline("P1").unwrap().unwrap();
     assert_eq!(t.sessions.len(), 1);
 }
@@ -131,7 +187,15 @@ fn failures_are_recorded_and_retried_only_when_transient() {
     let mut s = open(&dir);
     let bad = facts("holiday.png", "x");
     let err = "file name holiday.png matches none of the patterns tried: flat = /.../".to_string();
-    s.record(&bad, Outcome::Failed { name: None, error: err.clone(), retry: false }).unwrap();
+    s.record(
+        &bad,
+        Outcome::Failed {
+            name: None,
+            error: err.clone(),
+            retry: false,
+        },
+    )
+    .unwrap();
     assert!(s.is_known("holiday.png", 1, "mtime-of-x").unwrap());
     assert!(matches!(s.precheck(&bad).unwrap(), Precheck::Skip(_)));
     assert_eq!(s.recent_failures(5).unwrap(), vec![("holiday.png".into(), err)]);
@@ -140,11 +204,23 @@ fn failures_are_recorded_and_retried_only_when_transient() {
     let n = name("P1", day(0), View::Side(0));
     for attempt in 1..=3 {
         assert_eq!(s.precheck(&f).unwrap(), Precheck::Process, "attempt {attempt}");
-        s.record(&f, Outcome::Failed { name: Some(&n), error: "runtime busy".into(), retry: true }).unwrap();
+        s.record(
+            &f,
+            Outcome::Failed {
+                name: Some(&n),
+                error: "runtime busy".into(),
+                retry: true,
+            },
+        )
+        .unwrap();
     }
     assert!(matches!(s.precheck(&f).unwrap(), Precheck::Skip(_)));
-    let attempts: i64 =
-        s.conn().query_row("SELECT attempts FROM images WHERE path = 'P1_a.png'", [], |r| r.get(0)).unwrap();
+    let attempts: i64 = s
+        .conn()
+        .query_row("SELECT attempts FROM images WHERE path = 'P1_a.png'", [], |r| {
+            r.get(0)
+        })
+        .unwrap();
     assert_eq!(attempts, 3);
     let feed = s.feed_after(0, None, 100).unwrap();
     assert!(feed.iter().all(|r| r.kind == "failed"));
@@ -166,10 +242,19 @@ fn late_and_out_of_order_images_give_the_same_timeline() {
             let c = counts[d] - u32::from(a == 72);
             let t = day(d as i64) + Duration::seconds(a as i64);
             let f = facts(&format!("P1_{d}_{a}.png"), &format!("{d}-{a}"));
-            s.record(&f, Outcome::Counted(&name("P1", t, View::Side(a)), &count(c))).unwrap();
+            s.record(&f, Outcome::Counted(&name("P1", t, View::Side(a)), &count(c)))
+                .unwrap();
         }
-        let events: Vec<u32> = s.feed_after(0, None, 1000).unwrap().iter().flat_map(|r| r.new_leaves.clone()).collect();
-        (serde_json::to_string(&s.plant_timeline("P1").unwrap().unwrap()).unwrap(), events)
+        let events: Vec<u32> = s
+            .feed_after(0, None, 1000)
+            .unwrap()
+            .iter()
+            .flat_map(|r| r.new_leaves.clone())
+            .collect();
+        (
+            serde_json::to_string(&s.plant_timeline("P1").unwrap().unwrap()).unwrap(),
+            events,
+        )
     };
     let (in_order, _) = run(&images);
     let mut shuffled = images.clone();
@@ -183,9 +268,18 @@ fn late_and_out_of_order_images_give_the_same_timeline() {
 fn import_is_fused_like_model_counts_and_idempotent() {
     let dir = tempfile::tempdir().unwrap();
     let mut s = open(&dir);
-    s.record(&facts("P1_a.png", "a"), Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8))).unwrap();
+    s.record(
+        &facts("P1_a.png", "a"),
+        Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8)),
+    )
+    .unwrap();
     let rows = vec![
-        ("P1".to_string(), day(0) + Duration::minutes(1), View::parse("human"), 9),
+        (
+            "P1".to_string(),
+            day(0) + Duration::minutes(1),
+            View::parse("human"),
+            9,
+        ),
         ("P1".to_string(), day(1), View::parse("human"), 11),
         ("P2".to_string(), day(0), View::parse("SV_108"), 5),
     ];
@@ -203,16 +297,29 @@ fn migrations_are_versioned_and_readers_check_them() {
     let dir = tempfile::tempdir().unwrap();
     drop(open(&dir));
     let ro = Store::open_read_only(&db(&dir)).unwrap();
-    let mode: String = ro.conn().query_row("PRAGMA journal_mode", [], |r| r.get(0)).unwrap();
+    let mode: String = ro
+        .conn()
+        .query_row("PRAGMA journal_mode", [], |r| r.get(0))
+        .unwrap();
     assert_eq!(mode, "wal");
     drop(ro);
     drop(open(&dir)); // re-opening does not re-run migrations
     let conn = Connection::open(db(&dir)).unwrap();
     conn.pragma_update(None, "user_version", 99).unwrap();
     drop(conn);
-    let err = format!("{:#}", Store::open(&db(&dir), &TimelineConfig::default(), 3).err().unwrap());
+    let err = format!(
+        "{:#}",
+        Store::open(&db(&dir), &TimelineConfig::default(), 3)
+            .err()
+            .unwrap()
+    );
     assert!(err.contains("newer than this phyllo knows"), "{err}");
-    let err = format!("{:#}", Store::open_read_only(&dir.path().join("none.sqlite")).err().unwrap());
+    let err = format!(
+        "{:#}",
+        Store::open_read_only(&dir.path().join("none.sqlite"))
+            .err()
+            .unwrap()
+    );
     assert!(err.contains("does not exist"), "{err}");
 }
 
@@ -222,11 +329,20 @@ fn recompute_all_applies_a_new_fusion_rule() {
     let mut s = open(&dir);
     for (a, c) in [(0u16, 7u32), (108, 9)] {
         let f = facts(&format!("P1_{a}.png"), &a.to_string());
-        s.record(&f, Outcome::Counted(&name("P1", day(0) + Duration::seconds(a as i64), View::Side(a)), &count(c)))
-            .unwrap();
+        s.record(
+            &f,
+            Outcome::Counted(
+                &name("P1", day(0) + Duration::seconds(a as i64), View::Side(a)),
+                &count(c),
+            ),
+        )
+        .unwrap();
     }
     drop(s);
-    let tl = TimelineConfig { fusion: "view:SV_0".into(), ..TimelineConfig::default() };
+    let tl = TimelineConfig {
+        fusion: "view:SV_0".into(),
+        ..TimelineConfig::default()
+    };
     let mut s = Store::open(&db(&dir), &tl, 3).unwrap();
     assert_eq!(s.recompute_all().unwrap(), 1);
     assert_eq!(s.plant_timeline("P1").unwrap().unwrap().sessions[0].fused, 7.0);
