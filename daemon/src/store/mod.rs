@@ -644,7 +644,13 @@ fn recompute(
     for s in &tl.sessions {
         let mut views = serde_json::Map::new();
         for (v, c) in &s.views {
-            views.insert(v.to_string(), serde_json::json!(c));
+            // Counts are integers except for fused imports; keep "9", not "9.0", in exports.
+            let c = if c.fract() == 0.0 {
+                serde_json::json!(*c as i64)
+            } else {
+                serde_json::json!(c)
+            };
+            views.insert(v.to_string(), c);
         }
         tx.prepare_cached(
             "INSERT INTO sessions (plant_id, start, views, n_counts, fused, fusion_rule, leaves_emerged, living)
