@@ -112,7 +112,11 @@ fn operator_commands() {
         let path = d.join(format!("state/exports/{kind}.csv"));
         let mut r = csv::Reader::from_path(&path).unwrap();
         assert!(!r.headers().unwrap().is_empty());
-        assert_eq!(r.records().map(|x| x.unwrap()).count(), rows, "{kind}");
+        assert_eq!(
+            r.records().collect::<Result<Vec<_>, _>>().unwrap().len(),
+            rows,
+            "{kind}"
+        );
     }
     let events = d.join("out/ev.csv");
     ok(&[
