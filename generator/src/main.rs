@@ -1,6 +1,5 @@
-//! `phyllo-gen`: synthetic training data for phyllo.
+//! `phyllo-gen` command-line entry point.
 
-fn main() {
-    eprintln!("phyllo-gen: not built yet");
-    std::process::exit(2);
+fn main() -> std::process::ExitCode {
+    phyllo_gen::cli::main()
 }

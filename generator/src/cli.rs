@@ -1,0 +1,422 @@
+//! Command-line interface: argument parsing and validation, then hand-off to
+//! the command modules. Every bad argument is reported by name.
+
+use crate::dataset::{self, DatasetArgs};
+use crate::plant::{growth::PlantTraits, preset::Preset, Plant};
+use crate::render::{self, look::Look, Quality, Scene, Stage, View, Window};
+use crate::sequence::{self, Date, SequenceArgs};
+use crate::{bench, png_io, rng};
+use anyhow::{bail, Context};
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Synthetic sorghum images with exact panoptic labels for phyllo.
+#[derive(Parser, Debug)]
+#[command(name = "phyllo-gen", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Render a training dataset: images, labels, manifest.jsonl.
+    Dataset {
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+        /// Number of plants.
+        #[arg(long)]
+        plants: u64,
+        /// Master seed.
+        #[arg(long)]
+        seed: u64,
+        /// Views: side angles in degrees and/or `top`.
+        #[arg(long, default_value = "0,36,72,108,144,top")]
+        views: String,
+        /// Side of the square training crop in pixels (frame scale, never rescaled).
+        #[arg(long, default_value_t = 512)]
+        size: u32,
+        /// Fraction of plants held out for validation.
+        #[arg(long, default_value_t = 0.1)]
+        val_fraction: f32,
+        /// Preset names or .toml paths, comma-separated (default: all weighted built-ins).
+        #[arg(long)]
+        preset: Option<String>,
+        /// Render shard I of N (plants with index % N == I), e.g. 3/16.
+        #[arg(long, default_value = "0/1")]
+        shard: String,
+        /// Camera samples per pixel.
+        #[arg(long, default_value_t = Quality::default().spp)]
+        spp: u32,
+        /// Also write human-viewable colour masks to masks/.
+        #[arg(long)]
+        masks: bool,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Render plants growing over days, as facility-named camera frames + truth.csv.
+    Sequence {
+        /// Output folder (e.g. the daemon's watch folder).
+        #[arg(long)]
+        out: PathBuf,
+        /// Number of plants.
+        #[arg(long)]
+        plants: u64,
+        /// Number of imaging days.
+        #[arg(long)]
+        days: u32,
+        /// Master seed.
+        #[arg(long)]
+        seed: u64,
+        /// First imaging date (YYYY-MM-DD).
+        #[arg(long, default_value = "2018-04-10")]
+        start_date: String,
+        /// Plant age in days on the first imaging date.
+        #[arg(long, default_value_t = 14.0)]
+        start_age: f32,
+        /// Days between imaging sessions.
+        #[arg(long, default_value_t = 1)]
+        interval: u32,
+        /// Views per session.
+        #[arg(long, default_value = "0,36,72,108,144,top")]
+        views: String,
+        /// Camera frame height; width follows the 2454x2056 aspect.
+        #[arg(long, default_value_t = 514)]
+        frame_height: u32,
+        /// Preset names or .toml paths, comma-separated.
+        #[arg(long)]
+        preset: Option<String>,
+        /// Camera samples per pixel.
+        #[arg(long, default_value_t = Quality::default().spp)]
+        spp: u32,
+        /// Also write panoptic labels to labels/.
+        #[arg(long)]
+        labels: bool,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Measure rays/s and image+label pairs/s at training quality.
+    Bench {
+        /// Pairs to render.
+        #[arg(long, default_value_t = 24)]
+        pairs: u32,
+        /// Crop size.
+        #[arg(long, default_value_t = 512)]
+        size: u32,
+        /// Camera samples per pixel.
+        #[arg(long, default_value_t = Quality::default().spp)]
+        spp: u32,
+        /// Seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// Render one full camera frame (image, label, mask) of one plant.
+    Render {
+        /// Preset name or .toml path.
+        #[arg(long, default_value = "btx623")]
+        preset: String,
+        /// Plant seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Age in days after sowing.
+        #[arg(long, default_value_t = 35.0)]
+        age: f32,
+        /// View: side angle in degrees or `top`.
+        #[arg(long, default_value = "108")]
+        view: String,
+        /// Camera frame height.
+        #[arg(long, default_value_t = 514)]
+        frame_height: u32,
+        /// Camera samples per pixel.
+        #[arg(long, default_value_t = 16)]
+        spp: u32,
+        /// Output RGB PNG; the label goes beside it as `.label.png`, the mask as `.mask.png`.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Export a plant mesh as OBJ (one group per leaf).
+    Mesh {
+        /// Preset name or .toml path.
+        #[arg(long, default_value = "btx623")]
+        preset: String,
+        /// Plant seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Age in days after sowing.
+        #[arg(long, default_value_t = 35.0)]
+        age: f32,
+        /// Output .obj file.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// List built-in presets, or validate preset files.
+    Presets {
+        /// Preset files to validate.
+        files: Vec<PathBuf>,
+    },
+}
+
+/// Parses `I/N` with `I < N`.
+pub fn parse_shard(s: &str) -> anyhow::Result<(u64, u64)> {
+    let bad = || anyhow::anyhow!("--shard {s:?} must look like I/N with 0 <= I < N, e.g. 0/4");
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let (i, n): (u64, u64) = (
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+/// Parses a comma-separated view list.
+pub fn parse_views(s: &str) -> anyhow::Result<Vec<View>> {
+    let views = s
+        .split(',')
+        .filter(|v| !v.trim().is_empty())
+        .map(View::parse)
+        .collect::<anyhow::Result<Vec<_>>>()
+        .context("--views")?;
+    if views.is_empty() {
+        bail!("--views is empty");
+    }
+    let mut names: Vec<String> = views.iter().map(View::name).collect();
+    names.sort();
+    names.dedup();
+    if names.len() != views.len() {
+        bail!("--views {s:?} lists a view twice");
+    }
+    Ok(views)
+}
+
+/// Loads presets from a comma-separated list, or all weighted built-ins.
+pub fn parse_presets(s: Option<&str>) -> anyhow::Result<Vec<Preset>> {
+    match s {
+        Some(list) => {
+            let v = list
+                .split(',')
+                .filter(|p| !p.trim().is_empty())
+                .map(|p| Preset::load(p.trim()))
+                .collect::<Result<Vec<_>, _>>()
+                .context("--preset")?;
+            if v.is_empty() {
+                bail!("--preset is empty");
+            }
+            if v.len() > 1 && v.iter().all(|p| p.weight == 0.0) {
+                bail!("--preset: all listed presets have weight 0");
+            }
+            Ok(v)
+        }
+        None => Ok(Preset::builtins()?
+            .into_iter()
+            .filter(|p| p.weight > 0.0)
+            .collect()),
+    }
+}
+
+fn quality(spp: u32) -> anyhow::Result<Quality> {
+    if spp == 0 || spp > 4096 {
+        bail!("--spp {spp} must lie in 1..=4096");
+    }
+    Ok(Quality {
+        spp,
+        ..Quality::default()
+    })
+}
+
+fn check_age(age: f32) -> anyhow::Result<()> {
+    if !(age.is_finite() && (0.0..=400.0).contains(&age)) {
+        bail!("--age {age} must lie in 0..=400 days");
+    }
+    Ok(())
+}
+
+/// Runs a parsed command.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Dataset {
+            out,
+            plants,
+            seed,
+            views,
+            size,
+            val_fraction,
+            preset,
+            shard,
+            spp,
+            masks,
+            quiet,
+        } => {
+            if !(16..=4096).contains(&size) {
+                bail!("--size {size} must lie in 16..=4096");
+            }
+            if !(0.0..=1.0).contains(&val_fraction) {
+                bail!("--val-fraction {val_fraction} must lie in [0, 1]");
+            }
+            dataset::run(&DatasetArgs {
+                out,
+                plants,
+                seed,
+                views: parse_views(&views)?,
+                size,
+                val_fraction,
+                presets: parse_presets(preset.as_deref())?,
+                shard: parse_shard(&shard)?,
+                quality: quality(spp)?,
+                masks,
+                quiet,
+            })
+        }
+        Command::Sequence {
+            out,
+            plants,
+            days,
+            seed,
+            start_date,
+            start_age,
+            interval,
+            views,
+            frame_height,
+            preset,
+            spp,
+            labels,
+            quiet,
+        } => {
+            check_age(start_age).context("--start-age")?;
+            sequence::run(&SequenceArgs {
+                out,
+                plants,
+                days,
+                seed,
+                start: Date::parse(&start_date).context("--start-date")?,
+                start_age,
+                interval,
+                views: parse_views(&views)?,
+                frame_height,
+                presets: parse_presets(preset.as_deref())?,
+                quality: quality(spp)?,
+                labels,
+                quiet,
+            })
+        }
+        Command::Bench {
+            pairs,
+            size,
+            spp,
+            seed,
+        } => {
+            if pairs == 0 {
+                bail!("--pairs must be at least 1");
+            }
+            bench::run(pairs, size, quality(spp)?, seed)
+        }
+        Command::Render {
+            preset,
+            seed,
+            age,
+            view,
+            frame_height,
+            spp,
+            out,
+        } => {
+            check_age(age)?;
+            let preset = Preset::load(&preset)?;
+            let view = View::parse(&view).context("--view")?;
+            let traits = PlantTraits::sample(&preset, seed);
+            let plant = Plant::build(&traits, age);
+            let look = Look::facility();
+            let panicle = preset
+                .panicle
+                .as_ref()
+                .map(|x| x.reflectance)
+                .unwrap_or([0.3, 0.3, 0.1]);
+            let stage = Stage::new(&plant, &preset.colour, panicle, &look);
+            let scene = Scene::new(&stage, &look, view);
+            let camera = render::camera_for(view, &look, frame_height);
+            let window = Window {
+                x0: 0,
+                y0: 0,
+                width: camera.width,
+                height: camera.height,
+            };
+            let img = render::render(
+                &scene,
+                &camera,
+                &look,
+                window,
+                quality(spp)?,
+                rng::derive(seed, "render", 0),
+            )?;
+            png_io::write_atomic(&out, &png_io::rgb_png(&img.rgb)?)?;
+            png_io::write_atomic(&out.with_extension("label.png"), &png_io::label_png(&img.label)?)?;
+            png_io::write_atomic(
+                &out.with_extension("mask.png"),
+                &png_io::rgb_png(&img.label.mask())?,
+            )?;
+            println!(
+                "{}: preset {} age {age} d, {} living leaves ({} emerged), {} visible, {} triangles",
+                out.display(),
+                preset.name,
+                plant.leaf_count(),
+                plant.state.emerged,
+                img.label.visible_leaf_count(),
+                stage.triangles()
+            );
+            Ok(())
+        }
+        Command::Mesh {
+            preset,
+            seed,
+            age,
+            out,
+        } => {
+            check_age(age)?;
+            let preset = Preset::load(&preset)?;
+            let plant = Plant::build(&PlantTraits::sample(&preset, seed), age);
+            let mesh = render::scene_mesh(&plant);
+            let mut buf = Vec::new();
+            mesh.write_obj(&mut buf)?;
+            png_io::write_atomic(&out, &buf)?;
+            println!(
+                "{}: {} leaves, {} triangles, {} groups",
+                out.display(),
+                plant.leaf_count(),
+                mesh.tris.len(),
+                mesh.groups.len()
+            );
+            Ok(())
+        }
+        Command::Presets { files } => {
+            if files.is_empty() {
+                for p in Preset::builtins()? {
+                    println!(
+                        "{:8} {:8} weight {:.1}  {}",
+                        p.name, p.species, p.weight, p.description
+                    );
+                }
+            }
+            for f in files {
+                let p = Preset::load(&f.display().to_string())?;
+                println!("{}: ok ({} {})", f.display(), p.name, p.species);
+            }
+            Ok(())
+        }
+    }
+}
+
+/// Entry point: parse, run, print errors with their causes.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("phyllo-gen: error: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}

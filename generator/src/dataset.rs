@@ -1,0 +1,240 @@
+//! `phyllo-gen dataset`: image + label pairs with a JSON-lines manifest.
+//!
+//! Layout under the output folder: `images/`, `labels/` (16-bit panoptic
+//! PNG), optional `masks/`, `meta/` (one finished-item record each) and
+//! `manifest.jsonl`. An item is finished when its meta record exists; the
+//! record is written last and atomically, so a re-run skips finished items
+//! and redoes interrupted ones. With `--shard I/N` only plants with
+//! `index % N == I` are rendered and the manifest is
+//! `manifest.shard-I-of-N.jsonl`; the union of all shards equals an
+//! unsharded run byte for byte (re-running unsharded then only writes
+//! `manifest.jsonl`).
+
+use crate::plant::{growth::PlantTraits, preset::Preset, Plant};
+use crate::render::{self, look::Look, Quality, Scene, Stage, View};
+use crate::{png_io, rng, sampling};
+use anyhow::{bail, Context};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Settings of a dataset run.
+#[derive(Debug, Clone)]
+pub struct DatasetArgs {
+    /// Output folder.
+    pub out: PathBuf,
+    /// Number of plants.
+    pub plants: u64,
+    /// Master seed.
+    pub seed: u64,
+    /// Views rendered per plant.
+    pub views: Vec<View>,
+    /// Side of the square training crop.
+    pub size: u32,
+    /// Fraction of plants held out for validation.
+    pub val_fraction: f32,
+    /// Presets to draw from (weighted).
+    pub presets: Vec<Preset>,
+    /// This shard `(i, n)`.
+    pub shard: (u64, u64),
+    /// Sampling quality.
+    pub quality: Quality,
+    /// Write human-viewable masks too.
+    pub masks: bool,
+    /// No progress bar.
+    pub quiet: bool,
+}
+
+/// One manifest row.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Row {
+    /// RGB image, relative to the dataset folder.
+    pub image: String,
+    /// Panoptic label, relative to the dataset folder.
+    pub label: String,
+    /// Plant index.
+    pub plant: u64,
+    /// View name (`0`, `36`, ..., `top`).
+    pub view: String,
+    /// Genotype preset.
+    pub preset: String,
+    /// Plant age in days after sowing.
+    pub age_days: f32,
+    /// Living leaves on the plant.
+    pub leaf_count: usize,
+    /// Distinct leaf instances in this label.
+    pub visible_leaf_count: usize,
+    /// Leaves emerged so far (dead ones included).
+    pub leaves_emerged: usize,
+    /// `train` or `val`.
+    pub split: String,
+    /// The dataset's master seed.
+    pub seed: u64,
+    /// Pixels of each leaf instance in the label.
+    pub leaf_pixels: std::collections::BTreeMap<u16, u32>,
+    /// Crop origin in camera-frame pixels (frame is `frame` wide/high).
+    pub crop: [i32; 2],
+    /// Camera frame size the crop was taken from.
+    pub frame: [u32; 2],
+}
+
+fn item_name(plant: u64, view: &View) -> String {
+    format!("p{plant:06}_{}", view.name())
+}
+
+/// Runs the dataset command.
+pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
+    if args.plants == 0 {
+        bail!("--plants must be at least 1");
+    }
+    if args.views.is_empty() {
+        bail!("--views is empty");
+    }
+    let (si, sn) = args.shard;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating output folder {}", args.out.display()))?;
+    let mine: Vec<u64> = (0..args.plants).filter(|p| p % sn == si).collect();
+    let total = mine.len() as u64 * args.views.len() as u64;
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(total)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} pairs  {per_sec}  eta {eta}  {msg}")
+            .expect("valid template"),
+    );
+    let mut rows = Vec::new();
+    for &p in &mine {
+        let pending: Vec<&View> = args
+            .views
+            .iter()
+            .filter(|v| !meta_path(&args.out, p, v).exists())
+            .collect();
+        if !pending.is_empty() {
+            render_plant(args, p, &pending, &bar)?;
+        } else {
+            bar.inc(args.views.len() as u64);
+        }
+        for v in &args.views {
+            let path = meta_path(&args.out, p, v);
+            let text =
+                std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+            rows.push(
+                serde_json::from_str::<Row>(&text).with_context(|| format!("parsing {}", path.display()))?,
+            );
+        }
+    }
+    bar.finish_and_clear();
+    let name = if sn == 1 {
+        "manifest.jsonl".to_string()
+    } else {
+        format!("manifest.shard-{si}-of-{sn}.jsonl")
+    };
+    let mut text = String::new();
+    for r in &rows {
+        text.push_str(&serde_json::to_string(r)?);
+        text.push('\n');
+    }
+    png_io::write_atomic(&args.out.join(&name), text.as_bytes())?;
+    if !args.quiet {
+        eprintln!("wrote {} rows to {}", rows.len(), args.out.join(name).display());
+    }
+    Ok(())
+}
+
+fn meta_path(out: &Path, plant: u64, view: &View) -> PathBuf {
+    out.join("meta").join(format!("{}.json", item_name(plant, view)))
+}
+
+/// Everything decided about one dataset plant.
+pub struct PlantPlan {
+    /// The preset it was drawn from.
+    pub preset: Preset,
+    /// Its traits.
+    pub traits: PlantTraits,
+    /// Age in days.
+    pub age: f32,
+    /// Its look.
+    pub look: Look,
+}
+
+/// Plans dataset plant `index` from the master seed: the same inputs always
+/// give the same plant, whatever else the run renders.
+pub fn plan_plant(presets: &[Preset], seed: u64, index: u64) -> PlantPlan {
+    let preset = sampling::pick_preset(presets, seed, index).clone();
+    let traits = PlantTraits::sample(&preset, rng::derive(seed, "plant", index));
+    let age = sampling::pick_age(&traits, seed, index);
+    let look = Look::randomised(rng::derive(seed, "look", index));
+    PlantPlan {
+        preset,
+        traits,
+        age,
+        look,
+    }
+}
+
+fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) -> anyhow::Result<()> {
+    let plan = plan_plant(&args.presets, args.seed, p);
+    let plant = Plant::build(&plan.traits, plan.age);
+    let panicle = plan
+        .preset
+        .panicle
+        .as_ref()
+        .map(|x| x.reflectance)
+        .unwrap_or([0.3, 0.3, 0.1]);
+    let stage = Stage::new(&plant, &plan.preset.colour, panicle, &plan.look);
+    let split = if sampling::is_val(args.seed, p, args.val_fraction) {
+        "val"
+    } else {
+        "train"
+    };
+    let render_seed = rng::derive(args.seed, "render", p);
+    for view in views {
+        let scene = Scene::new(&stage, &plan.look, **view);
+        let camera = render::camera_for(
+            **view,
+            &plan.look,
+            phyllo_contract::Contract::embedded().input.frame_height,
+        );
+        let window = sampling::crop_window(&scene, &camera, **view, args.size);
+        let seed = rng::derive(render_seed, &view.name(), 0);
+        let out = render::render(&scene, &camera, &plan.look, window, args.quality, seed)?;
+        let name = item_name(p, view);
+        let (img_png, lab_png) = rayon::join(|| png_io::rgb_png(&out.rgb), || png_io::label_png(&out.label));
+        let image = format!("images/{name}.png");
+        let label = format!("labels/{name}.png");
+        png_io::write_atomic(&args.out.join(&image), &img_png?)?;
+        png_io::write_atomic(&args.out.join(&label), &lab_png?)?;
+        if args.masks {
+            png_io::write_atomic(
+                &args.out.join(format!("masks/{name}.png")),
+                &png_io::rgb_png(&out.label.mask())?,
+            )?;
+        }
+        let leaf_pixels = out.label.leaf_pixels();
+        let row = Row {
+            image,
+            label,
+            plant: p,
+            view: view.name(),
+            preset: plan.preset.name.clone(),
+            age_days: plan.age,
+            leaf_count: plant.leaf_count(),
+            visible_leaf_count: leaf_pixels.len(),
+            leaves_emerged: plant.state.emerged,
+            split: split.into(),
+            seed: args.seed,
+            leaf_pixels,
+            crop: [window.x0, window.y0],
+            frame: [camera.width, camera.height],
+        };
+        png_io::write_atomic(
+            &meta_path(&args.out, p, view),
+            serde_json::to_string(&row)?.as_bytes(),
+        )?;
+        bar.set_message(format!("plant {p} {}", plan.preset.name));
+        bar.inc(1);
+    }
+    Ok(())
+}

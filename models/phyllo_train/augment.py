@@ -1,0 +1,141 @@
+"""Augmentation aimed at the sim-to-real gap, applied jointly to an RGB image and its label.
+
+Geometric ops (scale jitter around the contract scale, crop, flip) touch both
+image and label; photometric ops (illumination, white balance, colour, blur,
+noise, JPEG) touch the image only. All randomness comes from the caller's
+``numpy.random.Generator`` so samples are reproducible.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+
+import numpy as np
+from PIL import Image, ImageFilter
+
+
+@dataclass
+class AugmentConfig:
+    """Knobs of the augmentation; defaults are the training recipe."""
+
+    crop: int | None = 256          # square crop side (input px); None = keep the full tile
+    scale: tuple[float, float] = (0.8, 1.25)  # log-uniform scale jitter around the contract scale
+    hflip: float = 0.5
+    rot90_top: bool = True          # top views have no "up": rotate by k*90 degrees
+    fg_crop: float = 0.8            # probability that the crop is centred on a plant pixel
+    brightness: float = 0.25        # multiplicative, +-
+    contrast: float = 0.25
+    saturation: float = 0.3
+    hue: float = 0.03               # fraction of the hue circle
+    gamma: tuple[float, float] = (0.75, 1.35)
+    white_balance: float = 0.12     # per-channel gain +-
+    gradient: float = 0.2           # linear illumination gradient amplitude
+    blur_p: float = 0.3
+    blur_sigma: tuple[float, float] = (0.3, 1.5)
+    noise_p: float = 0.5
+    noise_sigma: tuple[float, float] = (1.0, 8.0)  # in 0..255 units
+    jpeg_p: float = 0.4
+    jpeg_quality: tuple[int, int] = (35, 95)
+
+    @classmethod
+    def none(cls, crop: int | None = None) -> "AugmentConfig":
+        """No augmentation at all (validation); optional centre-free crop size."""
+        return cls(crop=crop, scale=(1.0, 1.0), hflip=0.0, rot90_top=False, fg_crop=0.0, brightness=0.0,
+                   contrast=0.0, saturation=0.0, hue=0.0, gamma=(1.0, 1.0), white_balance=0.0,
+                   gradient=0.0, blur_p=0.0, noise_p=0.0, jpeg_p=0.0)
+
+
+def _rescale(img: Image.Image, lab: np.ndarray, f: float) -> tuple[Image.Image, np.ndarray]:
+    if abs(f - 1.0) < 1e-3:
+        return img, lab
+    w, h = img.size
+    nw, nh = max(8, round(w * f)), max(8, round(h * f))
+    img = img.resize((nw, nh), Image.BILINEAR if f > 1 else Image.BOX)
+    # Nearest-neighbour on the label: instance ids must not blend.
+    yi = np.minimum((np.arange(nh) + 0.5) / f, h - 1).astype(np.int64)
+    xi = np.minimum((np.arange(nw) + 0.5) / f, w - 1).astype(np.int64)
+    return img, lab[yi][:, xi]
+
+
+def _crop(img: np.ndarray, lab: np.ndarray, size: int, rng: np.random.Generator, fg_p: float) -> tuple[np.ndarray, np.ndarray]:
+    h, w = lab.shape
+    if h < size or w < size:
+        # Pad with the edge colour (the chamber's wall) and background label.
+        ph, pw = max(0, size - h), max(0, size - w)
+        top, left = int(rng.integers(0, ph + 1)), int(rng.integers(0, pw + 1))
+        img = np.pad(img, ((top, ph - top), (left, pw - left), (0, 0)), mode="edge")
+        lab = np.pad(lab, ((top, ph - top), (left, pw - left)), mode="constant")
+        h, w = lab.shape
+    if fg_p > 0 and rng.random() < fg_p and (lab > 0).any():
+        ys, xs = np.nonzero(lab)
+        k = int(rng.integers(0, len(ys)))
+        y0 = int(np.clip(ys[k] - rng.integers(size // 4, 3 * size // 4 + 1), 0, h - size))
+        x0 = int(np.clip(xs[k] - rng.integers(size // 4, 3 * size // 4 + 1), 0, w - size))
+    else:
+        y0, x0 = int(rng.integers(0, h - size + 1)), int(rng.integers(0, w - size + 1))
+    return img[y0:y0 + size, x0:x0 + size], lab[y0:y0 + size, x0:x0 + size]
+
+
+def _rgb_to_hsv_shift(x: np.ndarray, hue: float, sat: float) -> np.ndarray:
+    """Hue rotation and saturation scale on float RGB in [0, 1] via PIL's HSV (fast, uint8)."""
+    img = Image.fromarray(np.clip(x * 255 + 0.5, 0, 255).astype(np.uint8)).convert("HSV")
+    hsv = np.asarray(img).astype(np.int16)
+    hsv[..., 0] = (hsv[..., 0] + int(round(hue * 255))) % 256
+    hsv[..., 1] = np.clip(hsv[..., 1] * sat, 0, 255)
+    return np.asarray(Image.fromarray(hsv.astype(np.uint8), "HSV").convert("RGB")).astype(np.float32) / 255.0
+
+
+def photometric(img: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator) -> np.ndarray:
+    """Colour / illumination / sensor augmentation of a uint8 RGB image; returns uint8."""
+    x = img.astype(np.float32) / 255.0
+    if cfg.hue > 0 or cfg.saturation > 0:
+        x = _rgb_to_hsv_shift(x, rng.uniform(-cfg.hue, cfg.hue), 1.0 + rng.uniform(-cfg.saturation, cfg.saturation))
+    if cfg.white_balance > 0:
+        x = x * (1.0 + rng.uniform(-cfg.white_balance, cfg.white_balance, size=3)).astype(np.float32)
+    if cfg.brightness > 0:
+        x = x * (1.0 + rng.uniform(-cfg.brightness, cfg.brightness))
+    if cfg.contrast > 0:
+        m = x.mean()
+        x = (x - m) * (1.0 + rng.uniform(-cfg.contrast, cfg.contrast)) + m
+    if cfg.gradient > 0:
+        # Uneven chamber lighting: a linear ramp in a random direction.
+        h, w = x.shape[:2]
+        a = rng.uniform(0, 2 * np.pi)
+        yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+        ramp = (np.cos(a) * (yy / h - 0.5) + np.sin(a) * (xx / w - 0.5)) * rng.uniform(0, cfg.gradient)
+        x = x * (1.0 + ramp[..., None])
+    x = np.clip(x, 0.0, 1.0)
+    if cfg.gamma != (1.0, 1.0):
+        x = x ** np.float32(np.exp(rng.uniform(np.log(cfg.gamma[0]), np.log(cfg.gamma[1]))))
+    out = Image.fromarray((x * 255 + 0.5).astype(np.uint8))
+    if rng.random() < cfg.blur_p:
+        out = out.filter(ImageFilter.GaussianBlur(rng.uniform(*cfg.blur_sigma)))
+    arr = np.asarray(out)
+    if rng.random() < cfg.noise_p:
+        noise = rng.normal(0, rng.uniform(*cfg.noise_sigma), size=arr.shape).astype(np.float32)
+        arr = np.clip(arr.astype(np.float32) + noise, 0, 255).astype(np.uint8)
+    if rng.random() < cfg.jpeg_p:
+        buf = io.BytesIO()
+        Image.fromarray(arr).save(buf, format="JPEG", quality=int(rng.integers(cfg.jpeg_quality[0], cfg.jpeg_quality[1] + 1)))
+        buf.seek(0)
+        arr = np.asarray(Image.open(buf).convert("RGB"))
+    return arr
+
+
+def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
+            top_view: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Augment an RGB PIL image and its (H, W) label; returns (uint8 HxWx3, label) of the crop size."""
+    lo, hi = cfg.scale
+    if hi > lo:
+        img, label = _rescale(img, label, float(np.exp(rng.uniform(np.log(lo), np.log(hi)))))
+    arr = np.asarray(img.convert("RGB"))
+    if cfg.crop is not None:
+        arr, label = _crop(arr, label, cfg.crop, rng, cfg.fg_crop)
+    if rng.random() < cfg.hflip:
+        arr, label = arr[:, ::-1], label[:, ::-1]
+    if top_view and cfg.rot90_top:
+        k = int(rng.integers(0, 4))
+        arr, label = np.rot90(arr, k), np.rot90(label, k)
+    arr = photometric(np.ascontiguousarray(arr), cfg, rng)
+    return arr, np.ascontiguousarray(label)

@@ -1,0 +1,104 @@
+"""Read phyllo-gen datasets (``DIR/manifest.jsonl``) into network inputs and targets."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+from PIL import Image
+from torch.utils.data import Dataset
+
+from .augment import AugmentConfig, augment
+from .contract import Contract, load_contract
+from .targets import make_targets
+
+REQUIRED_KEYS = ("image", "label", "split")
+
+
+def read_manifest(root: str | Path, split: str | None = None) -> list[dict]:
+    """Rows of ``root/manifest.jsonl`` (optionally only one split), in file order."""
+    rows = []
+    with open(Path(root) / "manifest.jsonl", encoding="utf-8") as f:
+        for n, line in enumerate(f, 1):
+            if not line.strip():
+                continue
+            row = json.loads(line)
+            missing = [k for k in REQUIRED_KEYS if k not in row]
+            if missing:
+                raise ValueError(f"manifest line {n}: missing {missing}")
+            if split is None or row["split"] == split:
+                rows.append(row)
+    return rows
+
+
+def read_label(path: str | Path) -> np.ndarray:
+    """A 16-bit grey PNG panoptic label as an (H, W) int32 array."""
+    with Image.open(path) as im:
+        if im.mode not in ("I;16", "I;16B", "I;16L", "I", "L"):
+            raise ValueError(f"{path}: label mode {im.mode}, expected 16-bit grey")
+        return np.array(im, dtype=np.int32)
+
+
+def normalise(rgb: np.ndarray, contract: Contract) -> np.ndarray:
+    """uint8 HxWx3 RGB -> float32 3xHxW, pixel/255 then (x - mean) / std as the contract says."""
+    x = rgb.astype(np.float32) / 255.0
+    x = (x - np.asarray(contract.mean, np.float32)) / np.asarray(contract.std, np.float32)
+    return np.ascontiguousarray(x.transpose(2, 0, 1))
+
+
+def is_top_view(row: dict) -> bool:
+    """True for top views (any rotation is plausible), from the manifest's ``view`` field."""
+    v = str(row.get("view", "")).lower()
+    return "top" in v or v.startswith("tv") or "_tv" in v
+
+
+class PanopticDataset(Dataset):
+    """Samples (image tensor, target dict) from a phyllo-gen manifest.
+
+    Augmentation randomness is seeded from (seed, epoch, index), so a sample is
+    the same whichever worker loads it, and a resumed run sees the same data.
+    """
+
+    def __init__(self, root: str | Path, split: str | None = "train", aug: AugmentConfig | None = None,
+                 contract: Contract | None = None, seed: int = 0, limit: int | None = None):
+        self.root = Path(root)
+        self.contract = contract or load_contract()
+        self.rows = read_manifest(self.root, split)[: limit]
+        if not self.rows:
+            raise ValueError(f"no rows with split={split!r} in {self.root / 'manifest.jsonl'}")
+        self.aug = aug or AugmentConfig.none()
+        self.seed = seed
+        self.epoch = 0
+
+    def set_epoch(self, epoch: int) -> None:
+        """Change the augmentation stream (call once per epoch)."""
+        self.epoch = epoch
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __getitem__(self, idx: int) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+        row = self.rows[idx]
+        rng = np.random.default_rng([self.seed, self.epoch, idx])
+        with Image.open(self.root / row["image"]) as im:
+            img = im.convert("RGB")
+        label = read_label(self.root / row["label"])
+        if label.shape != (img.size[1], img.size[0]):
+            raise ValueError(f"{row['label']}: shape {label.shape} differs from image {img.size[::-1]}")
+        cfg = self.aug
+        if cfg.crop is None:
+            # Full tiles: crop back to the original size so H, W stay multiples of 32.
+            cfg = AugmentConfig(**{**cfg.__dict__, "crop": min(label.shape) // 32 * 32})
+        rgb, label = augment(img, label, cfg, rng, top_view=is_top_view(row))
+        t = make_targets(label, self.contract)
+        target = {
+            "semantic": torch.from_numpy(t.semantic),
+            "semantic_weight": torch.from_numpy(t.semantic_weight),
+            "center": torch.from_numpy(t.center),
+            "center_weight": torch.from_numpy(t.center_weight),
+            "offset": torch.from_numpy(t.offset),
+            "offset_weight": torch.from_numpy(t.offset_weight),
+        }
+        return torch.from_numpy(normalise(rgb, self.contract)), target

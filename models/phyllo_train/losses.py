@@ -1,0 +1,50 @@
+"""Panoptic-DeepLab losses: top-k hard-pixel cross-entropy, centre MSE, offset L1."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch.nn import functional as F
+
+
+@dataclass
+class LossWeights:
+    """Relative weights of the three terms (Panoptic-DeepLab: 1 / 200 / 0.01) and the top-k ratio."""
+
+    semantic: float = 1.0
+    center: float = 200.0
+    offset: float = 0.01
+    top_k: float = 0.2
+
+
+def semantic_topk_ce(logits: torch.Tensor, target: torch.Tensor, weight: torch.Tensor, top_k: float) -> torch.Tensor:
+    """Weighted per-pixel cross-entropy averaged over the hardest ``top_k`` fraction of pixels in the batch."""
+    pixel = F.cross_entropy(logits, target, reduction="none") * weight
+    pixel = pixel.flatten()
+    if top_k < 1.0:
+        k = max(1, int(top_k * pixel.numel()))
+        pixel, _ = torch.topk(pixel, k, sorted=False)
+    return pixel.mean()
+
+
+def center_mse(pred: torch.Tensor, target: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
+    """Weighted MSE on the heatmap, averaged over all pixels (as Panoptic-DeepLab)."""
+    return ((pred - target) ** 2 * weight).sum() / weight.sum().clamp_min(1.0)
+
+
+def offset_l1(pred: torch.Tensor, target: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
+    """L1 on (dy, dx) over thing pixels only, normalised by their count."""
+    return ((pred - target).abs() * weight).sum() / weight.sum().clamp_min(1.0)
+
+
+def panoptic_loss(outputs: tuple[torch.Tensor, torch.Tensor, torch.Tensor], targets: dict[str, torch.Tensor],
+                  w: LossWeights) -> tuple[torch.Tensor, dict[str, float]]:
+    """Total weighted loss and its (unweighted) parts for logging."""
+    sem, center, offset = outputs
+    l_sem = semantic_topk_ce(sem, targets["semantic"], targets["semantic_weight"], w.top_k)
+    l_cen = center_mse(center, targets["center"], targets["center_weight"])
+    l_off = offset_l1(offset, targets["offset"], targets["offset_weight"])
+    total = w.semantic * l_sem + w.center * l_cen + w.offset * l_off
+    parts = {"loss": total, "sem": l_sem, "center": l_cen, "offset": l_off}
+    return total, {k: float(v.detach()) for k, v in parts.items()}

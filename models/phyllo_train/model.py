@@ -1,0 +1,182 @@
+"""A light Panoptic-DeepLab-style network for CPU inference.
+
+Layout (strides relative to the input tile):
+
+* encoder: MobileNetV2-like inverted-residual blocks with depthwise 3x3
+  convolutions down to stride 32;
+* context: a light ASPP (1x1 + dilated depthwise + image pooling) at stride 32;
+* a shared decoder that upsamples (bilinear x2) and fuses skips at 16, 8, 4;
+* a semantic branch that fuses the stride-2 stem features (thin young leaves
+  keep their edges) and an instance branch at stride 4 (Panoptic-DeepLab keeps
+  the two paths apart) whose centre and offset outputs are upsampled x2.
+
+Everything is Conv/BN/ReLU/Resize/Add, so it exports to plain ONNX ops that
+ONNX Runtime fuses well; BN folds into the convolutions at export time.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+
+def conv_bn(cin: int, cout: int, k: int = 1, stride: int = 1, groups: int = 1, dilation: int = 1, act: bool = True) -> nn.Sequential:
+    """Conv + BatchNorm (+ ReLU); padding keeps 'same' size at stride 1."""
+    pad = dilation * (k - 1) // 2
+    layers: list[nn.Module] = [
+        nn.Conv2d(cin, cout, k, stride, pad, dilation=dilation, groups=groups, bias=False),
+        nn.BatchNorm2d(cout),
+    ]
+    if act:
+        layers.append(nn.ReLU(inplace=True))
+    return nn.Sequential(*layers)
+
+
+class SepConv(nn.Sequential):
+    """Depthwise-separable 3x3 conv: depthwise 3x3 + BN + ReLU, pointwise 1x1 + BN + ReLU."""
+
+    def __init__(self, cin: int, cout: int, dilation: int = 1):
+        super().__init__(conv_bn(cin, cin, 3, groups=cin, dilation=dilation), conv_bn(cin, cout, 1))
+
+
+class InvertedResidual(nn.Module):
+    """MobileNetV2 block: 1x1 expand, depthwise 3x3 (maybe strided), 1x1 linear project."""
+
+    def __init__(self, cin: int, cout: int, stride: int = 1, expand: int = 4, dilation: int = 1):
+        super().__init__()
+        hid = cin * expand
+        self.use_res = stride == 1 and cin == cout
+        self.block = nn.Sequential(
+            conv_bn(cin, hid, 1),
+            conv_bn(hid, hid, 3, stride=stride, groups=hid, dilation=dilation),
+            conv_bn(hid, cout, 1, act=False),
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        y = self.block(x)
+        return x + y if self.use_res else y
+
+
+def _stage(cin: int, cout: int, n: int, stride: int, expand: int = 4) -> nn.Sequential:
+    blocks = [InvertedResidual(cin, cout, stride, expand)]
+    blocks += [InvertedResidual(cout, cout, 1, expand) for _ in range(n - 1)]
+    return nn.Sequential(*blocks)
+
+
+class LiteASPP(nn.Module):
+    """Context module: 1x1 branch + dilated depthwise-separable branch + image pooling, summed."""
+
+    def __init__(self, cin: int, cout: int):
+        super().__init__()
+        self.b1 = conv_bn(cin, cout, 1)
+        self.b2 = SepConv(cin, cout, dilation=2)
+        # Image pooling: no BN (batch of 1x1 maps with N=1 would break BN statistics).
+        self.pool_proj = nn.Sequential(nn.Conv2d(cin, cout, 1), nn.ReLU(inplace=True))
+        self.out = conv_bn(cout, cout, 1)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        pooled = self.pool_proj(torch.mean(x, dim=(2, 3), keepdim=True))
+        return self.out(self.b1(x) + self.b2(x) + pooled)  # pooled broadcasts over H, W
+
+
+def up2(x: torch.Tensor) -> torch.Tensor:
+    """Bilinear x2 upsampling (ONNX Resize); inputs are multiples of 32 so sizes always match."""
+    return F.interpolate(x, scale_factor=2.0, mode="bilinear", align_corners=False)
+
+
+class FuseUp(nn.Module):
+    """Upsample the coarse path x2, add a 1x1-projected skip, refine with a separable conv."""
+
+    def __init__(self, c_coarse: int, c_skip: int, cout: int):
+        super().__init__()
+        self.reduce = conv_bn(c_coarse, cout, 1) if c_coarse != cout else nn.Identity()
+        self.skip = conv_bn(c_skip, cout, 1)
+        self.refine = SepConv(cout, cout)
+
+    def forward(self, coarse: torch.Tensor, skip: torch.Tensor) -> torch.Tensor:
+        # Reduce channels before upsampling: the resize then moves fewer bytes.
+        return self.refine(up2(self.reduce(coarse)) + self.skip(skip))
+
+
+class PhylloNet(nn.Module):
+    """Panoptic-DeepLab-style net: returns (semantic logits, centre heatmap, offsets) at stride 2.
+
+    ``offset_scale`` multiplies the raw offset head so that its initial output
+    range is closer to the targets (tens of output pixels); it is part of the
+    graph, so ONNX consumers see offsets directly in output pixels.
+    """
+
+    def __init__(self, num_classes: int = 4, width: tuple[int, ...] = (16, 24, 32, 64, 128),
+                 dec: tuple[int, ...] = (64, 48, 32, 24), offset_scale: float = 8.0):
+        super().__init__()
+        c2, c4, c8, c16, c32 = width
+        d16, d8, d4, d2 = dec
+        self.offset_scale = offset_scale
+        self.stem = nn.Sequential(conv_bn(3, c2, 3, stride=2), SepConv(c2, c2))  # stride 2
+        self.s4 = _stage(c2, c4, 2, 2, expand=3)  # expand 3: this stage runs at the largest size
+        self.s8 = _stage(c4, c8, 3, 2)
+        self.s16 = _stage(c8, c16, 3, 2)
+        self.s32 = _stage(c16, c32, 2, 2)
+        self.aspp = LiteASPP(c32, d16)
+        self.up16 = FuseUp(d16, c16, d16)
+        self.up8 = FuseUp(d16, c8, d8)
+        self.up4 = FuseUp(d8, c4, d4)
+        # Semantic branch goes to stride 2 with the stem skip: thin leaves need the detail.
+        self.sem_up2 = FuseUp(d4, c2, d2)
+        self.sem_head = nn.Sequential(conv_bn(d2, d2, 3, groups=d2), nn.Conv2d(d2, num_classes, 1))
+        # Instance branch stays at stride 4 (centre Gaussians and offsets are smooth) and its
+        # 3 output channels are upsampled x2: a fraction of the cost of a stride-2 branch.
+        self.ins = SepConv(d4, d4)
+        self.center_head = nn.Sequential(SepConv(d4, d4), nn.Conv2d(d4, 1, 1))
+        self.offset_head = nn.Sequential(SepConv(d4, d4), nn.Conv2d(d4, 2, 1))
+        self._init_weights()
+
+    def _init_weights(self) -> None:
+        for m in self.modules():
+            if isinstance(m, nn.Conv2d):
+                nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")
+                if m.bias is not None:
+                    nn.init.zeros_(m.bias)
+            elif isinstance(m, nn.BatchNorm2d):
+                nn.init.ones_(m.weight)
+                nn.init.zeros_(m.bias)
+        # Small final layers: start near "no centre, zero offset", as Panoptic-DeepLab heads do.
+        # Small semantic logits start the CE near log(4) instead of exploding on random features.
+        nn.init.normal_(self.sem_head[-1].weight, std=1e-2)
+        for head in (self.center_head, self.offset_head):
+            nn.init.normal_(head[-1].weight, std=1e-3)
+            nn.init.zeros_(head[-1].bias)
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """x: normalised NCHW float32, H and W multiples of 32."""
+        f2 = self.stem(x)
+        f4 = self.s4(f2)
+        f8 = self.s8(f4)
+        f16 = self.s16(f8)
+        f32 = self.s32(f16)
+        d = self.aspp(f32)
+        d = self.up16(d, f16)
+        d = self.up8(d, f8)
+        d4 = self.up4(d, f4)
+        sem = self.sem_head(self.sem_up2(d4, f2))
+        ins = self.ins(d4)
+        center = up2(self.center_head(ins))
+        offset = up2(self.offset_head(ins)) * self.offset_scale
+        return sem, center, offset
+
+
+def build_model(num_classes: int = 4, seed: int | None = 0) -> PhylloNet:
+    """Build the shipped architecture; with ``seed`` the initial weights are deterministic."""
+    if seed is not None:
+        g_state = torch.random.get_rng_state()
+        torch.manual_seed(seed)
+        model = PhylloNet(num_classes)
+        torch.random.set_rng_state(g_state)
+        return model
+    return PhylloNet(num_classes)
+
+
+def count_parameters(model: nn.Module) -> int:
+    """Number of trainable parameters."""
+    return sum(p.numel() for p in model.parameters() if p.requires_grad)

@@ -1,0 +1,133 @@
+"""Panoptic-DeepLab training targets from a panoptic label, at the contract's output stride.
+
+Conventions (shared with the Rust decoder, see models/MODEL.md):
+
+* output pixel (i, j) covers input pixels (s*i .. s*i+s-1, s*j .. s*j+s-1) with
+  s = stride; its centre is input coordinate (s*i + (s-1)/2, s*j + (s-1)/2)
+  in pixel-index units;
+* an instance's centre is the centre of mass of its input pixels, expressed
+  in output-pixel coordinates: c_out = (c_in - (s-1)/2) / s;
+* offset[:, i, j] = (cy - i, cx - j) in output pixels, on thing pixels only;
+* the centre heatmap is max over instances of exp(-d^2 / (2 sigma^2)) around
+  the centre rounded to the nearest output pixel, so every peak is exactly 1
+  and sits on a pixel.
+
+Instances are whatever is visible in the given label (for a crop: the visible
+part), which is what a network that sees one tile can predict.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .contract import Contract
+
+
+@dataclass
+class Targets:
+    """Per-image targets at output resolution (h = H/stride, w = W/stride)."""
+
+    semantic: np.ndarray        # (h, w) int64 class ids
+    semantic_weight: np.ndarray  # (h, w) float32
+    center: np.ndarray          # (1, h, w) float32 Gaussian heatmap
+    center_weight: np.ndarray   # (1, h, w) float32
+    offset: np.ndarray          # (2, h, w) float32 (dy, dx) in output pixels
+    offset_weight: np.ndarray   # (1, h, w) float32, 1 on thing pixels
+    instances: np.ndarray       # (h, w) int32 panoptic id (class*divisor+inst) of thing pixels, else 0
+    centers: np.ndarray         # (K, 2) float32 continuous centres (y, x) of thing instances, output px
+
+
+def downsample_label(label: np.ndarray, stride: int) -> np.ndarray:
+    """Label at output resolution: the first non-background of each stride x stride block.
+
+    Preferring foreground (rather than a fixed corner) keeps leaves one or two
+    input pixels wide from vanishing at stride 2.
+    """
+    h, w = label.shape[0] // stride, label.shape[1] // stride
+    label = label[: h * stride, : w * stride]
+    out = np.zeros((h, w), dtype=label.dtype)
+    for dy in range(stride):
+        for dx in range(stride):
+            sub = label[dy::stride, dx::stride]
+            np.copyto(out, sub, where=(out == 0))
+    return out
+
+
+def gaussian_heatmap(shape: tuple[int, int], centers: np.ndarray, sigma: float) -> np.ndarray:
+    """Max of unit-peak Gaussians at the given integer (y, x) centres; drawn in 3-sigma windows."""
+    h, w = shape
+    heat = np.zeros((h, w), dtype=np.float32)
+    r = int(np.ceil(3 * sigma))
+    g1 = np.arange(-r, r + 1, dtype=np.float32)
+    g = np.exp(-(g1[:, None] ** 2 + g1[None, :] ** 2) / (2 * sigma * sigma))
+    for cy, cx in centers.astype(int):
+        y0, y1, x0, x1 = max(0, cy - r), min(h, cy + r + 1), max(0, cx - r), min(w, cx + r + 1)
+        if y0 >= y1 or x0 >= x1:
+            continue
+        patch = g[y0 - (cy - r): y1 - (cy - r), x0 - (cx - r): x1 - (cx - r)]
+        np.maximum(heat[y0:y1, x0:x1], patch, out=heat[y0:y1, x0:x1])
+    return heat
+
+
+def make_targets(label: np.ndarray, contract: Contract, *, small_area: int = 1024,
+                 small_weight: float = 3.0, thing_weight: float = 1.0) -> Targets:
+    """Compute all targets from a (H, W) panoptic label (class*divisor + instance).
+
+    ``small_area`` (input pixels) and ``small_weight``: Panoptic-DeepLab up-weights
+    the semantic loss on small instances; young leaves are exactly those.
+    """
+    s, div = contract.stride, contract.label_divisor
+    label = label.astype(np.int64)
+    H, W = label.shape
+    h, w = H // s, W // s
+    cls_full = label // div
+    inst_full = label % div
+    things = np.isin(cls_full, contract.things) & (inst_full > 0)
+
+    low = downsample_label(label, s)
+    semantic = (low // div).astype(np.int64)
+    semantic[semantic >= contract.num_classes] = 0  # unknown classes read as background
+    low_things = np.isin(semantic, contract.things) & (low % div > 0)
+    instances = np.where(low_things, low, 0).astype(np.int32)
+
+    sem_w = np.ones((h, w), dtype=np.float32)
+    offset = np.zeros((2, h, w), dtype=np.float32)
+    off_w = low_things.astype(np.float32)[None]
+    centers_int = []
+    centers = []
+    if things.any():
+        ys, xs = np.nonzero(things)
+        ids = label[ys, xs]
+        uniq, inv = np.unique(ids, return_inverse=True)
+        area = np.bincount(inv).astype(np.float64)
+        cy_in = np.bincount(inv, weights=ys) / area
+        cx_in = np.bincount(inv, weights=xs) / area
+        # Input pixel-index coordinates -> output pixel-index coordinates.
+        cy = (cy_in - (s - 1) / 2.0) / s
+        cx = (cx_in - (s - 1) / 2.0) / s
+        grid_y, grid_x = np.mgrid[0:h, 0:w].astype(np.float32)
+        for k, pid in enumerate(uniq):
+            m = instances == pid
+            if not m.any():
+                continue  # too small to survive at stride s: no centre either
+            offset[0][m] = cy[k] - grid_y[m]
+            offset[1][m] = cx[k] - grid_x[m]
+            if area[k] < small_area:
+                sem_w[m] = small_weight
+            elif thing_weight != 1.0:
+                sem_w[m] = thing_weight
+            centers.append((cy[k], cx[k]))
+            centers_int.append((int(np.clip(np.rint(cy[k]), 0, h - 1)), int(np.clip(np.rint(cx[k]), 0, w - 1))))
+    center = gaussian_heatmap((h, w), np.array(centers_int, dtype=np.int64).reshape(-1, 2), contract.center_sigma)
+    return Targets(
+        semantic=semantic,
+        semantic_weight=sem_w,
+        center=center[None],
+        center_weight=np.ones((1, h, w), dtype=np.float32),
+        offset=offset,
+        offset_weight=off_w,
+        instances=instances,
+        centers=np.array(centers, dtype=np.float32).reshape(-1, 2),
+    )

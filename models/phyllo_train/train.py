@@ -1,0 +1,293 @@
+"""Train the phyllo network on phyllo-gen datasets.
+
+    python -m phyllo_train.train --data DIR --out RUN_DIR [--steps N | --epochs E] [--crop 256] [--device cpu|cuda]
+
+RUN_DIR gets ``last.pt`` (every ``--ckpt-every`` steps and at the end),
+``best.pt`` (lowest validation loss), ``log.jsonl`` and ``args.json``.
+Re-running the same command resumes from ``last.pt``. Export with
+``python -m phyllo_train.export --checkpoint RUN_DIR/best.pt --out models/NAME.onnx``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import random
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.utils.data import ConcatDataset, DataLoader
+
+from .augment import AugmentConfig
+from .contract import load_contract
+from .dataset import PanopticDataset, read_manifest
+from .losses import LossWeights, panoptic_loss
+from .model import build_model, count_parameters
+from .postprocess import decode, label_leaf_count
+
+
+def seed_everything(seed: int) -> None:
+    """Seed Python, NumPy and torch RNGs (augmentation has its own per-sample seeds)."""
+    random.seed(seed)
+    np.random.seed(seed)
+    torch.manual_seed(seed)
+
+
+def describe_data(dirs: list[Path]) -> str:
+    """Free-text provenance for ``phyllo.training_data``: generator version, presets, seeds, counts."""
+    parts = []
+    for d in dirs:
+        rows = read_manifest(d)
+        splits = Counter(r["split"] for r in rows)
+        presets = Counter(str(r.get("preset", "?")) for r in rows if r["split"] == "train")
+        seeds = [r["seed"] for r in rows if isinstance(r.get("seed"), int)]
+        gen = {str(r.get(k)) for r in rows for k in ("generator", "generator_version") if r.get(k) is not None}
+        meta_file = d / "dataset.json"
+        if not gen and meta_file.exists():
+            try:
+                meta = json.loads(meta_file.read_text())
+                gen = {str(meta.get("generator_version") or meta.get("generator") or "")} - {""}
+            except (OSError, ValueError):
+                pass
+        parts.append(
+            f"{d.name}: phyllo-gen {'/'.join(sorted(gen)) or 'version unknown'}; "
+            f"{splits.get('train', 0)} train / {splits.get('val', 0)} val images; presets "
+            + ", ".join(f"{k} {v}" for k, v in sorted(presets.items()))
+            + (f"; seeds {min(seeds)}..{max(seeds)}" if seeds else "")
+        )
+    return " | ".join(parts)
+
+
+def lr_at(step: int, total: int, base: float, warmup: int) -> float:
+    """Linear warmup then cosine decay to 2% of ``base``."""
+    if step < warmup:
+        return base * (step + 1) / warmup
+    t = min(1.0, (step - warmup) / max(1, total - warmup))
+    return base * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * t)))
+
+
+def epoch_batches(n: int, batch: int, seed: int, epoch: int) -> list[list[int]]:
+    """Deterministic shuffled batches of one epoch (drop_last so BN never sees a batch of 1)."""
+    perm = np.random.default_rng([seed, 1_000_003, epoch]).permutation(n)
+    return [perm[i:i + batch].tolist() for i in range(0, n - batch + 1, batch)]
+
+
+def collate(samples):
+    """Stack images and target dicts."""
+    xs = torch.stack([s[0] for s in samples])
+    keys = samples[0][1].keys()
+    return xs, {k: torch.stack([s[1][k] for s in samples]) for k in keys}
+
+
+def save_atomic(obj: dict, path: Path) -> None:
+    """torch.save through a temporary file so an interrupted save never corrupts a checkpoint."""
+    tmp = path.with_suffix(".tmp")
+    torch.save(obj, tmp)
+    os.replace(tmp, path)
+
+
+@torch.no_grad()
+def evaluate(model: torch.nn.Module, ds: PanopticDataset, device: torch.device, w: LossWeights,
+             batch: int) -> dict[str, float]:
+    """Validation losses on full tiles plus leaf-count agreement against the labels."""
+    model.eval()
+    contract = ds.contract
+    sums: Counter = Counter()
+    n = 0
+    errs = []
+    for i in range(0, len(ds), batch):
+        xs, ts = collate([ds[j] for j in range(i, min(len(ds), i + batch))])
+        xs = xs.to(device).contiguous(memory_format=torch.channels_last)
+        ts = {k: v.to(device) for k, v in ts.items()}
+        out = model(xs)
+        _, parts = panoptic_loss(out, ts, w)
+        for k, v in parts.items():
+            sums[k] += v * len(xs)
+        for b in range(len(xs)):
+            j = i + b
+            row = ds.rows[j]
+            from .dataset import read_label  # local: only validation needs the raw label again
+            truth = row.get("visible_leaf_count")
+            if truth is None:
+                truth = label_leaf_count(read_label(ds.root / row["label"]), contract)
+            pred = decode(out[0][b].cpu(), out[1][b].cpu(), out[2][b].cpu(), contract).leaf_count
+            errs.append(pred - int(truth))
+        n += len(xs)
+    e = np.array(errs)
+    res = {f"val_{k}": v / n for k, v in sums.items()}
+    res.update(val_exact=float(np.mean(e == 0)), val_within1=float(np.mean(np.abs(e) <= 1)),
+               val_rmse=float(np.sqrt(np.mean(e.astype(float) ** 2))), val_bias=float(np.mean(e)))
+    model.train()
+    return res
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Command-line options."""
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.train", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", type=Path, action="append", required=True, help="phyllo-gen dataset dir (repeatable)")
+    ap.add_argument("--out", type=Path, required=True, help="run directory (checkpoints, logs)")
+    g = ap.add_mutually_exclusive_group()
+    g.add_argument("--steps", type=int, help="total optimiser steps")
+    g.add_argument("--epochs", type=float, help="total epochs over the train split (default 10)")
+    ap.add_argument("--crop", type=int, default=256, help="random crop side in input px; 0 = full tiles")
+    ap.add_argument("--batch", type=int, default=8)
+    ap.add_argument("--lr", type=float, default=2e-3)
+    ap.add_argument("--weight-decay", type=float, default=1e-4)
+    ap.add_argument("--warmup", type=int, default=200)
+    ap.add_argument("--ema", type=float, default=0.999, help="EMA decay of weights used for val/export; 0 = off")
+    ap.add_argument("--center-weight", type=float, default=200.0)
+    ap.add_argument("--offset-weight", type=float, default=0.01)
+    ap.add_argument("--top-k", type=float, default=0.2)
+    ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
+    ap.add_argument("--threads", type=int, default=2, help="torch intra-op threads (CPU)")
+    ap.add_argument("--workers", type=int, default=1, help="data loader worker processes")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--limit", type=int, default=None, help="use only the first N train images")
+    ap.add_argument("--val-limit", type=int, default=64, help="validation images (0 = no validation)")
+    ap.add_argument("--val-every", type=int, default=500)
+    ap.add_argument("--ckpt-every", type=int, default=200)
+    ap.add_argument("--log-every", type=int, default=10)
+    ap.add_argument("--no-resume", action="store_true", help="start afresh even if RUN_DIR/last.pt exists")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Train; returns a process exit code."""
+    args = build_parser().parse_args(argv)
+    contract = load_contract()
+    seed_everything(args.seed)
+    device = torch.device(args.device)
+    if device.type == "cpu":
+        torch.set_num_threads(args.threads)
+    args.out.mkdir(parents=True, exist_ok=True)
+
+    aug = AugmentConfig(crop=args.crop or None)
+    if not args.crop:
+        aug.scale = (1.0, 1.0)  # full tiles: keep the contract's tile size exactly
+    train_sets = [PanopticDataset(d, "train", aug, contract, seed=args.seed, limit=args.limit) for d in args.data]
+    train_ds = train_sets[0] if len(train_sets) == 1 else ConcatDataset(train_sets)
+    val_ds = None
+    if args.val_limit:
+        try:
+            val_ds = PanopticDataset(args.data[0], "val", AugmentConfig.none(), contract, limit=args.val_limit)
+        except ValueError:
+            print("note: no val split; validation disabled", file=sys.stderr)
+    per_epoch = len(train_ds) // args.batch
+    if per_epoch == 0:
+        raise SystemExit(f"{len(train_ds)} train images is fewer than one batch of {args.batch}")
+    total = args.steps or int(round((args.epochs or 10) * per_epoch))
+
+    # channels_last: ~2.5x faster depthwise conv / BN training on CPU (oneDNN), also good on GPUs.
+    mem = torch.channels_last
+    model = build_model(contract.num_classes, seed=args.seed).to(device, memory_format=mem)
+    ema = (torch.optim.swa_utils.AveragedModel(
+        model, multi_avg_fn=torch.optim.swa_utils.get_ema_multi_avg_fn(args.ema), use_buffers=True)
+        if args.ema > 0 else None)
+    # No weight decay on BN parameters and biases (standard practice for small nets).
+    decay = [p for n, p in model.named_parameters() if p.ndim > 1]
+    no_decay = [p for n, p in model.named_parameters() if p.ndim <= 1]
+    opt = torch.optim.AdamW([{"params": decay, "weight_decay": args.weight_decay},
+                             {"params": no_decay, "weight_decay": 0.0}], lr=args.lr)
+    weights = LossWeights(1.0, args.center_weight, args.offset_weight, args.top_k)
+    training_data = describe_data(args.data)
+
+    step, best = 0, float("inf")
+    last = args.out / "last.pt"
+    if last.exists() and not args.no_resume:
+        ck = torch.load(last, map_location=device, weights_only=False)
+        model.load_state_dict(ck["raw_model"])
+        opt.load_state_dict(ck["optimizer"])
+        if ema is not None and ck.get("ema") is not None:
+            ema.load_state_dict(ck["ema"])
+        step, best = ck["step"], ck.get("best", best)
+        torch.set_rng_state(ck["torch_rng"])
+        print(f"resumed from {last} at step {step}")
+    (args.out / "args.json").write_text(json.dumps({k: str(v) if isinstance(v, Path) else v
+                                                    for k, v in vars(args).items()}, indent=1, default=str))
+    print(f"{count_parameters(model)} params; {len(train_ds)} train images, {per_epoch} steps/epoch, "
+          f"{total} steps, crop {args.crop or contract.tile}, batch {args.batch}, device {device}")
+    print(f"training data: {training_data}")
+
+    def checkpoint(path: Path) -> None:
+        save_atomic({
+            "model": (ema.module if ema is not None else model).state_dict(),  # what export ships
+            "raw_model": model.state_dict(), "ema": ema.state_dict() if ema is not None else None,
+            "optimizer": opt.state_dict(), "step": step, "best": best, "args": vars(args),
+            "training_data": training_data, "contract_version": contract.version,
+            "torch_rng": torch.get_rng_state(),
+        }, path)
+        # Resume restores the raw weights; "model" holds the EMA weights for export.
+
+    log = open(args.out / "log.jsonl", "a", encoding="utf-8")
+    tty = sys.stdout.isatty()
+    model.train()
+    run_avg: dict[str, float] = {}
+    t_last, imgs_since = time.perf_counter(), 0
+    t_start = time.perf_counter()
+    while step < total:
+        epoch = step // per_epoch
+        for ds in train_sets:
+            ds.set_epoch(epoch)
+        batches = epoch_batches(len(train_ds), args.batch, args.seed, epoch)[step % per_epoch:]
+        loader = DataLoader(train_ds, batch_sampler=batches, num_workers=args.workers, collate_fn=collate,
+                            persistent_workers=False, pin_memory=device.type == "cuda")
+        for xs, ts in loader:
+            if step >= total:
+                break
+            for g in opt.param_groups:
+                g["lr"] = lr_at(step, total, args.lr, args.warmup)
+            xs = xs.to(device, non_blocking=True).contiguous(memory_format=mem)
+            ts = {k: v.to(device, non_blocking=True) for k, v in ts.items()}
+            loss, parts = panoptic_loss(model(xs), ts, weights)
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(model.parameters(), 5.0)
+            opt.step()
+            if ema is not None:
+                ema.update_parameters(model)
+            step += 1
+            imgs_since += len(xs)
+            for k, v in parts.items():
+                run_avg[k] = v if k not in run_avg else 0.9 * run_avg[k] + 0.1 * v
+            if step % args.log_every == 0 or step == total:
+                now = time.perf_counter()
+                rate = imgs_since / max(1e-9, now - t_last)
+                t_last, imgs_since = now, 0
+                eta = (total - step) * args.batch / max(rate, 1e-9)
+                msg = (f"step {step}/{total} ep {epoch} | loss {run_avg['loss']:.4f} (sem {run_avg['sem']:.4f} "
+                       f"ctr {run_avg['center']:.5f} off {run_avg['offset']:.3f}) | {rate:.1f} img/s | "
+                       f"lr {opt.param_groups[0]['lr']:.2e} | eta {int(eta // 60)}m{int(eta % 60):02d}s")
+                print(("\r" + msg) if tty else msg, end="" if tty else "\n", flush=True)
+                log.write(json.dumps({"step": step, "epoch": epoch, "rate": rate, **run_avg}) + "\n")
+                log.flush()
+            if step % args.ckpt_every == 0 or step == total:
+                checkpoint(last)
+            if val_ds is not None and (step % args.val_every == 0 or step == total):
+                res = evaluate(ema.module if ema is not None else model, val_ds, device, weights, args.batch)
+                if tty:
+                    print()
+                print("val: " + " ".join(f"{k[4:]} {v:.4f}" for k, v in res.items()), flush=True)
+                log.write(json.dumps({"step": step, **res}) + "\n")
+                log.flush()
+                if res["val_loss"] < best:
+                    best = res["val_loss"]
+                    checkpoint(args.out / "best.pt")
+                checkpoint(last)
+    if tty:
+        print()
+    if val_ds is None or not (args.out / "best.pt").exists():
+        checkpoint(args.out / "best.pt")
+    print(f"done: {step} steps in {(time.perf_counter() - t_start) / 60:.1f} min; checkpoints in {args.out}")
+    log.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

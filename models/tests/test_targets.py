@@ -1,0 +1,80 @@
+"""Targets: semantic downsampling, centre heatmap, offsets and weights."""
+
+import numpy as np
+import torch
+
+from phyllo_train.losses import LossWeights, panoptic_loss, semantic_topk_ce
+from phyllo_train.postprocess import decode, label_leaf_count
+from phyllo_train.targets import downsample_label, make_targets
+
+
+def test_single_leaf_centre_and_offsets(contract):
+    lab = np.zeros((64, 64), np.int32)
+    lab[10:20, 4:40] = 1 * contract.label_divisor + 1  # leaf, rows 10..19, cols 4..39
+    lab[40:60, 30:34] = 2 * contract.label_divisor      # stem: stuff, no instance
+    t = make_targets(lab, contract)
+    s = contract.stride
+    assert t.semantic.shape == (64 // s, 64 // s)
+    assert set(np.unique(t.semantic)) == {0, 1, 2}
+    # Centre of mass (14.5, 21.5) in input pixels -> ((14.5 - 0.5) / 2, (21.5 - 0.5) / 2) = (7, 10.5).
+    np.testing.assert_allclose(t.centers, [[7.0, 10.5]], atol=1e-5)
+    assert t.center.max() == 1.0
+    peak = np.unravel_index(t.center[0].argmax(), t.center[0].shape)
+    assert abs(peak[0] - 7) <= 0.5 and abs(peak[1] - 10.5) <= 0.5
+    # Every leaf pixel + its offset lands on the centre; nothing else has an offset.
+    ys, xs = np.nonzero(t.offset_weight[0])
+    assert (t.semantic[ys, xs] == 1).all()
+    np.testing.assert_allclose(ys + t.offset[0, ys, xs], 7.0, atol=1e-5)
+    np.testing.assert_allclose(xs + t.offset[1, ys, xs], 10.5, atol=1e-5)
+    assert (t.offset[:, t.offset_weight[0] == 0] == 0).all()
+    assert (t.offset_weight[0][t.semantic == 2] == 0).all()
+    # Small instance (360 px < 1024) is up-weighted in the semantic loss.
+    assert (t.semantic_weight[t.semantic == 1] == 3.0).all()
+    assert (t.semantic_weight[t.semantic == 0] == 1.0).all()
+
+
+def test_downsample_keeps_one_pixel_leaf():
+    lab = np.zeros((8, 8), np.int32)
+    lab[3, :] = 1001  # a one-pixel-thin leaf on an odd row
+    low = downsample_label(lab, 2)
+    assert (low[1, :] == 1001).all() and low.sum() == 4 * 1001
+
+
+def test_split_leaf_is_one_instance(contract):
+    """An occluded leaf in two pieces: both pieces point to one centre."""
+    lab = np.zeros((64, 64), np.int32)
+    lab[20:24, 2:20] = 1001
+    lab[20:24, 40:62] = 1001
+    lab[2:60, 28:34] = 1002  # the occluder
+    t = make_targets(lab, contract)
+    assert len(t.centers) == 2
+    ys, xs = np.nonzero(t.instances == 1001)
+    pts = np.stack([ys + t.offset[0, ys, xs], xs + t.offset[1, ys, xs]], 1)
+    assert np.ptp(pts, axis=0).max() < 1e-4
+
+
+def test_perfect_outputs_decode_to_true_count(contract, tiny_dataset):
+    """Targets fed through the Python decoder give back the label's leaf count."""
+    from phyllo_train.dataset import read_label, read_manifest
+
+    for row in read_manifest(tiny_dataset):
+        lab = read_label(tiny_dataset / row["label"])
+        t = make_targets(lab, contract)
+        logits = torch.nn.functional.one_hot(torch.from_numpy(t.semantic), contract.num_classes).permute(2, 0, 1).float()
+        res = decode(logits, torch.from_numpy(t.center), torch.from_numpy(t.offset), contract)
+        assert res.leaf_count == label_leaf_count(lab, contract) == row["visible_leaf_count"]
+
+
+def test_losses_are_small_for_perfect_outputs(contract):
+    lab = np.zeros((64, 64), np.int32)
+    lab[10:20, 4:40] = 1001
+    t = make_targets(lab, contract)
+    ts = {k: torch.from_numpy(getattr(t, k))[None] for k in
+          ("semantic", "semantic_weight", "center", "center_weight", "offset", "offset_weight")}
+    logits = torch.nn.functional.one_hot(ts["semantic"], 4).permute(0, 3, 1, 2).float() * 20
+    total, parts = panoptic_loss((logits, ts["center"], ts["offset"]), ts, LossWeights())
+    assert parts["center"] == 0 and parts["offset"] == 0 and parts["sem"] < 1e-6
+    # Top-k mining averages only the hardest pixels: never below the plain mean.
+    rnd = torch.randn(1, 4, 32, 32)
+    assert semantic_topk_ce(rnd, ts["semantic"], ts["semantic_weight"], 0.2) >= semantic_topk_ce(
+        rnd, ts["semantic"], ts["semantic_weight"], 1.0)
