@@ -1,0 +1,212 @@
+//! The inference pipeline: image bytes in, leaf count out.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use image::RgbImage;
+use phyllo_contract::{Contract, LEAF};
+use serde::{Deserialize, Serialize};
+
+use crate::decode::{decode_rgb, DecodeLimits};
+use crate::error::InferenceError;
+use crate::model::{Model, ModelInfo, ModelOptions};
+use crate::postprocess::{panoptic, Panoptic, PostprocessParams};
+use crate::region::RegionMode;
+use crate::result::{CountResult, Instance, StageTimings};
+use crate::runtime;
+use crate::stitch::{stitch, TileOutputs};
+use crate::tiling::{batch_tensor, prepare, Canvas};
+
+/// Environment variable naming the default model file.
+pub const MODEL_ENV: &str = "PHYLLO_MODEL";
+
+/// Everything the pipeline can be told.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CounterConfig {
+    /// Model file; `None` picks the default (see [`default_model_path`]).
+    pub model: Option<PathBuf>,
+    /// ONNX Runtime shared library; `None` searches (see [`crate::runtime`]).
+    pub ort_lib: Option<PathBuf>,
+    /// ONNX Runtime intra-op threads (0: one per core).
+    pub intra_threads: usize,
+    /// Tiles per ONNX Runtime call.
+    pub batch_size: usize,
+    /// How the plant's region is found.
+    pub region: RegionMode,
+    /// Post-processing parameters.
+    pub postprocess: PostprocessParams,
+    /// Decoder limits.
+    pub limits: DecodeLimits,
+}
+
+impl Default for CounterConfig {
+    fn default() -> Self {
+        Self {
+            model: None,
+            ort_lib: None,
+            intra_threads: 0,
+            batch_size: 4,
+            region: RegionMode::Auto,
+            postprocess: PostprocessParams::default(),
+            limits: DecodeLimits::default(),
+        }
+    }
+}
+
+/// The default model: `$PHYLLO_MODEL`, then `../share/phyllo/phyllo.onnx`
+/// beside the executable (a packaged install), then the model shipped in this
+/// source tree (`models/phyllo.onnx`, else `models/phyllo-untrained.onnx`).
+pub fn default_model_path() -> PathBuf {
+    if let Some(p) = std::env::var_os(MODEL_ENV).filter(|v| !v.is_empty()) {
+        return PathBuf::from(p);
+    }
+    let mut candidates = Vec::new();
+    if let Some(exe_dir) = std::env::current_exe().ok().and_then(|e| e.parent().map(Path::to_path_buf)) {
+        candidates.push(exe_dir.join("../share/phyllo/phyllo.onnx"));
+    }
+    let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models");
+    candidates.push(models.join("phyllo.onnx"));
+    candidates.push(models.join("phyllo-untrained.onnx"));
+    candidates.iter().find(|p| p.is_file()).cloned().unwrap_or_else(|| candidates[0].clone())
+}
+
+/// Everything counting one image produced, for overlays and evaluation.
+#[derive(Debug, Clone)]
+pub struct Analysis {
+    /// The count and instances in original-image pixels.
+    pub result: CountResult,
+    /// The panoptic segmentation of the canvas, in output pixels.
+    pub panoptic: Panoptic,
+    /// The canvas and its mapping back to the original image.
+    pub canvas: Canvas,
+}
+
+/// Counts leaves. Safe to share between threads: ONNX Runtime calls are
+/// serialised inside (each already uses every core it is given).
+pub struct Counter {
+    model: Model,
+    config: CounterConfig,
+    contract: &'static Contract,
+}
+
+impl Counter {
+    /// Loads ONNX Runtime and the model.
+    pub fn new(config: CounterConfig) -> Result<Self, InferenceError> {
+        let env = runtime::environment(config.ort_lib.as_deref())?;
+        let model_path = config.model.clone().unwrap_or_else(default_model_path);
+        let model = Model::load(env, &model_path, ModelOptions { intra_threads: config.intra_threads })?;
+        Ok(Self { model, config, contract: Contract::embedded() })
+    }
+
+    /// What the model says about itself.
+    pub fn model_info(&self) -> &ModelInfo {
+        self.model.info()
+    }
+
+    /// `name@sha256-prefix` of the model, stored with every observation.
+    pub fn model_id(&self) -> String {
+        self.model.info().id()
+    }
+
+    /// The configuration this counter runs with.
+    pub fn config(&self) -> &CounterConfig {
+        &self.config
+    }
+
+    /// Reads and counts the image at `path`.
+    pub fn count_path(&self, path: &Path) -> Result<CountResult, InferenceError> {
+        let bytes = std::fs::read(path).map_err(|e| InferenceError::image(path, format!("cannot read: {e}")))?;
+        self.count_bytes(path, &bytes)
+    }
+
+    /// Counts an image whose bytes the caller already read; `name` names it in errors.
+    pub fn count_bytes(&self, name: &Path, bytes: &[u8]) -> Result<CountResult, InferenceError> {
+        self.analyse_bytes(name, bytes).map(|a| a.result)
+    }
+
+    /// Decodes and analyses an image, keeping the intermediate results.
+    pub fn analyse_bytes(&self, name: &Path, bytes: &[u8]) -> Result<Analysis, InferenceError> {
+        let t0 = Instant::now();
+        let img = decode_rgb(name, bytes, &self.config.limits)?;
+        let decode_ms = ms(t0);
+        let mut analysis = self.analyse_image(&img)?;
+        analysis.result.ms.decode = decode_ms;
+        analysis.result.ms.total += decode_ms;
+        Ok(analysis)
+    }
+
+    /// Analyses an already decoded image.
+    pub fn analyse_image(&self, img: &RgbImage) -> Result<Analysis, InferenceError> {
+        let c = self.contract;
+        let t0 = Instant::now();
+        let canvas = prepare(c, img, self.config.region);
+        let tile_ms = ms(t0);
+
+        let t1 = Instant::now();
+        let mut outputs: Option<TileOutputs> = None;
+        for chunk in canvas.tiles.chunks(self.config.batch_size.max(1)) {
+            let batch = batch_tensor(c, &canvas.image, chunk);
+            let out = self.model.run(batch.view())?;
+            match outputs.as_mut() {
+                None => outputs = Some(out),
+                Some(o) => o.append(out),
+            }
+        }
+        let outputs = outputs.expect("a canvas has at least one tile");
+        let inference_ms = ms(t1);
+
+        let t2 = Instant::now();
+        let (cw, ch) = canvas.image.dimensions();
+        let raw = stitch(&outputs, &canvas.tiles, cw, ch, c.outputs.stride);
+        let pan = panoptic(&raw, c, &self.config.postprocess);
+        let result = to_result(c, &pan, &canvas, img.dimensions());
+        let post_ms = ms(t2);
+        let mut result = result;
+        result.ms = StageTimings {
+            decode: 0.0,
+            tile: tile_ms,
+            inference: inference_ms,
+            postprocess: post_ms,
+            total: tile_ms + inference_ms + post_ms,
+        };
+        Ok(Analysis { result, panoptic: pan, canvas })
+    }
+}
+
+/// Converts a canvas panoptic result into original-image instances.
+pub fn to_result(c: &Contract, pan: &Panoptic, canvas: &Canvas, size: (u32, u32)) -> CountResult {
+    let s = c.outputs.stride as f32;
+    let px_area = (s / canvas.scale).powi(2);
+    let clamp = |v: f32, max: u32| (v.round().max(0.0) as u32).min(max);
+    let instances: Vec<Instance> = pan
+        .segments
+        .iter()
+        .map(|seg| {
+            let [x0, y0] = canvas.to_original(seg.bbox[0] as f32 * s, seg.bbox[1] as f32 * s);
+            let [x1, y1] = canvas.to_original(seg.bbox[2] as f32 * s, seg.bbox[3] as f32 * s);
+            let [cx, cy] = canvas.to_original((seg.centre[0] + 0.5) * s, (seg.centre[1] + 0.5) * s);
+            Instance {
+                id: seg.id,
+                class: seg.class,
+                class_name: c.classes.names[seg.class as usize].clone(),
+                area: (seg.area as f32 * px_area).round() as u64,
+                bbox: [clamp(x0, size.0), clamp(y0, size.1), clamp(x1, size.0), clamp(y1, size.1)],
+                centre: [cx, cy],
+                score: seg.score,
+            }
+        })
+        .collect();
+    CountResult {
+        leaf_count: pan.count(LEAF) as u32,
+        instances,
+        image_size: [size.0, size.1],
+        region: canvas.region,
+        tiles: canvas.tiles.len() as u32,
+        ms: StageTimings::default(),
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}

@@ -1,0 +1,125 @@
+//! Decoding image files into RGB, with limits against hostile input.
+
+use std::io::Cursor;
+use std::path::Path;
+
+use image::{ImageFormat, ImageReader, RgbImage};
+use serde::{Deserialize, Serialize};
+
+use crate::error::InferenceError;
+
+/// Bounds on what the decoder accepts. A LemnaTec frame is 2454x2056; the
+/// defaults leave room for larger cameras while refusing decompression bombs.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DecodeLimits {
+    /// Largest accepted width or height, in pixels.
+    pub max_side: u32,
+    /// Largest accepted width x height, in pixels.
+    pub max_pixels: u64,
+    /// Smallest accepted width or height, in pixels.
+    pub min_side: u32,
+    /// Most memory the decoder may allocate, in bytes.
+    pub max_alloc_bytes: u64,
+}
+
+impl Default for DecodeLimits {
+    fn default() -> Self {
+        Self { max_side: 12_000, max_pixels: 40_000_000, min_side: 16, max_alloc_bytes: 512 << 20 }
+    }
+}
+
+/// Decodes `bytes` (the content of `name`) into 8-bit RGB.
+///
+/// The format is recognised from the content, not the extension, so a JPEG
+/// saved as `.png` still decodes and a text file named `.jpg` is refused as
+/// such. 16-bit, grey, grey+alpha and RGBA images are converted to RGB8
+/// (alpha is dropped: the chamber has no transparency).
+pub fn decode_rgb(name: &Path, bytes: &[u8], limits: &DecodeLimits) -> Result<RgbImage, InferenceError> {
+    if bytes.is_empty() {
+        return Err(InferenceError::image(name, "file is empty (0 bytes)"));
+    }
+    let reader = ImageReader::new(Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| InferenceError::image(name, format!("cannot read: {e}")))?;
+    let format = reader.format().ok_or_else(|| {
+        InferenceError::image(name, "not a PNG, JPEG or TIFF image (unrecognised content)")
+    })?;
+    if !matches!(format, ImageFormat::Png | ImageFormat::Jpeg | ImageFormat::Tiff) {
+        return Err(InferenceError::image(name, format!("{format:?} images are not supported (PNG, JPEG, TIFF)")));
+    }
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| InferenceError::image(name, format!("cannot read {format:?} header: {e}")))?;
+    check_dimensions(name, w, h, limits)?;
+
+    let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
+    let mut lim = image::Limits::default();
+    lim.max_image_width = Some(limits.max_side);
+    lim.max_image_height = Some(limits.max_side);
+    lim.max_alloc = Some(limits.max_alloc_bytes);
+    reader.limits(lim);
+    let img = reader
+        .decode()
+        .map_err(|e| InferenceError::image(name, format!("corrupt or truncated {format:?}: {e}")))?;
+    Ok(img.into_rgb8())
+}
+
+/// Refuses images that are too small to hold a plant or too large to be a camera frame.
+pub fn check_dimensions(name: &Path, w: u32, h: u32, limits: &DecodeLimits) -> Result<(), InferenceError> {
+    if w < limits.min_side || h < limits.min_side {
+        return Err(InferenceError::image(
+            name,
+            format!("{w}x{h} is too small (each side must be at least {} px)", limits.min_side),
+        ));
+    }
+    if w > limits.max_side || h > limits.max_side || u64::from(w) * u64::from(h) > limits.max_pixels {
+        return Err(InferenceError::image(
+            name,
+            format!(
+                "{w}x{h} exceeds the limits ({} px per side, {} pixels): refusing a possible decompression bomb",
+                limits.max_side, limits.max_pixels
+            ),
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn png_bytes(img: image::DynamicImage) -> Vec<u8> {
+        let mut out = Vec::new();
+        img.write_to(&mut Cursor::new(&mut out), ImageFormat::Png).unwrap();
+        out
+    }
+
+    #[test]
+    fn decodes_grey16_and_rgba_to_rgb8() {
+        let lim = DecodeLimits::default();
+        let g16 = image::DynamicImage::ImageLuma16(image::ImageBuffer::from_pixel(32, 20, image::Luma([65535u16])));
+        let rgb = decode_rgb(Path::new("a.png"), &png_bytes(g16), &lim).unwrap();
+        assert_eq!(rgb.dimensions(), (32, 20));
+        assert_eq!(rgb.get_pixel(3, 3).0, [255, 255, 255]);
+        let rgba = image::DynamicImage::ImageRgba8(image::ImageBuffer::from_pixel(20, 20, image::Rgba([10, 200, 30, 0])));
+        let rgb = decode_rgb(Path::new("b.png"), &png_bytes(rgba), &lim).unwrap();
+        assert_eq!(rgb.get_pixel(0, 0).0, [10, 200, 30]);
+    }
+
+    #[test]
+    fn refuses_empty_garbage_truncated_and_bombs_with_the_name() {
+        let lim = DecodeLimits::default();
+        let e = decode_rgb(Path::new("empty.png"), &[], &lim).unwrap_err().to_string();
+        assert!(e.contains("empty.png") && e.contains("empty"), "{e}");
+        let e = decode_rgb(Path::new("t.jpg"), b"hello, I am text", &lim).unwrap_err().to_string();
+        assert!(e.contains("t.jpg") && e.contains("not a PNG"), "{e}");
+        let full = png_bytes(image::DynamicImage::new_rgb8(64, 64));
+        let e = decode_rgb(Path::new("cut.png"), &full[..full.len() / 2], &lim).unwrap_err().to_string();
+        assert!(e.contains("cut.png") && e.contains("corrupt or truncated"), "{e}");
+        let e = check_dimensions(Path::new("bomb.png"), 100_000, 100_000, &lim).unwrap_err().to_string();
+        assert!(e.contains("decompression bomb"), "{e}");
+        let e = check_dimensions(Path::new("dot.png"), 1, 1, &lim).unwrap_err().to_string();
+        assert!(e.contains("too small"), "{e}");
+    }
+}

@@ -1,0 +1,177 @@
+//! Loading a panoptic ONNX model and checking it against the contract.
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use ndarray::{Array4, ArrayView4, Ix4};
+use ort::session::Session;
+use ort::value::{TensorRef, ValueType};
+use phyllo_contract::{Contract, NUM_CLASSES};
+use serde::Serialize;
+use sha2::{Digest, Sha256};
+
+use crate::error::InferenceError;
+use crate::stitch::TileOutputs;
+
+/// What a loaded model says about itself.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelInfo {
+    /// Path it was loaded from.
+    pub path: PathBuf,
+    /// `phyllo.model_name` from its metadata (file stem if absent).
+    pub name: String,
+    /// Whether `phyllo.trained` says "true". Untrained models run the
+    /// machinery end to end, but their counts mean nothing.
+    pub trained: bool,
+    /// `phyllo.training_data` from its metadata.
+    pub training_data: String,
+    /// First 12 hex digits of the file's SHA-256.
+    pub sha256_prefix: String,
+}
+
+impl ModelInfo {
+    /// Identifier stored with every observation: `name@sha256-prefix`.
+    pub fn id(&self) -> String {
+        format!("{}@{}", self.name, self.sha256_prefix)
+    }
+}
+
+/// A model ready to run tiles, shareable across threads.
+pub struct Model {
+    session: Mutex<Session>,
+    info: ModelInfo,
+    contract: &'static Contract,
+}
+
+/// Session options for [`Model::load`].
+#[derive(Debug, Clone, Copy)]
+pub struct ModelOptions {
+    /// ONNX Runtime intra-op threads (0: ONNX Runtime's default, one per core).
+    pub intra_threads: usize,
+}
+
+impl Model {
+    /// Loads `path`, refusing it with a message naming every difference if it
+    /// does not follow the contract.
+    pub fn load(
+        env: &ort::environment::Environment,
+        path: &Path,
+        options: ModelOptions,
+    ) -> Result<Self, InferenceError> {
+        let contract = Contract::embedded();
+        let bytes = std::fs::read(path).map_err(|e| InferenceError::model(path, format!("cannot read: {e}")))?;
+        if bytes.is_empty() {
+            return Err(InferenceError::model(path, "file is empty"));
+        }
+        let sha = Sha256::digest(&bytes);
+        let sha256_prefix: String = sha.iter().take(6).map(|b| format!("{b:02x}")).collect();
+        let mut builder = Session::builder(env).map_err(|e| InferenceError::model(path, e))?;
+        if options.intra_threads > 0 {
+            builder = builder.with_intra_threads(options.intra_threads).map_err(|e| InferenceError::model(path, e))?;
+        }
+        let session = builder
+            .commit_from_memory(&bytes)
+            .map_err(|e| InferenceError::model(path, format!("not a loadable ONNX model: {e}")))?;
+        let meta = session.metadata().map_err(|e| InferenceError::model(path, e))?;
+        let key = |k: &str| meta.custom(k);
+        let mut problems = Vec::new();
+        match key(&contract.metadata.contract_version) {
+            Some(v) if v.trim() == contract.version.to_string() => {}
+            Some(v) => problems.push(format!(
+                "metadata {} is {v:?}, this build needs {:?}",
+                contract.metadata.contract_version, contract.version
+            )),
+            None => problems.push(format!("metadata has no {} key", contract.metadata.contract_version)),
+        }
+        problems.extend(check_io(&session, contract));
+        if !problems.is_empty() {
+            return Err(InferenceError::model(
+                path,
+                format!("does not follow phyllo contract v{}: {}", contract.version, problems.join("; ")),
+            ));
+        }
+        let name = key(&contract.metadata.model_name).unwrap_or_else(|| {
+            path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+        });
+        let trained = key(&contract.metadata.trained).is_some_and(|v| v.trim() == "true");
+        let training_data = key(&contract.metadata.training_data).unwrap_or_default();
+        drop(meta);
+        let info = ModelInfo { path: path.to_path_buf(), name, trained, training_data, sha256_prefix };
+        Ok(Self { session: Mutex::new(session), info, contract })
+    }
+
+    /// What the model says about itself.
+    pub fn info(&self) -> &ModelInfo {
+        &self.info
+    }
+
+    /// Runs one batch of tiles `[n, 3, tile, tile]`.
+    pub fn run(&self, batch: ArrayView4<'_, f32>) -> Result<TileOutputs, InferenceError> {
+        let c = self.contract;
+        let input = TensorRef::from_array_view(batch).map_err(|e| InferenceError::Inference(e.to_string()))?;
+        let mut session = self.session.lock().unwrap_or_else(|e| e.into_inner());
+        let outputs = session
+            .run(ort::inputs![c.input.name.as_str() => input])
+            .map_err(|e| InferenceError::Inference(e.to_string()))?;
+        let take = |name: &str, channels: usize| -> Result<Array4<f32>, InferenceError> {
+            let v = outputs
+                .get(name)
+                .ok_or_else(|| InferenceError::Inference(format!("model produced no output {name:?}")))?;
+            let arr = v
+                .try_extract_array::<f32>()
+                .map_err(|e| InferenceError::Inference(format!("output {name:?}: {e}")))?
+                .into_dimensionality::<Ix4>()
+                .map_err(|e| InferenceError::Inference(format!("output {name:?} is not 4-D: {e}")))?;
+            let expect = (batch.dim().0, channels, batch.dim().2 / c.outputs.stride as usize);
+            let got = arr.dim();
+            if (got.0, got.1, got.2) != expect || got.2 != got.3 {
+                return Err(InferenceError::Inference(format!(
+                    "output {name:?} has shape {got:?}, contract expects [{}, {}, {}, {}]",
+                    expect.0, expect.1, expect.2, expect.2
+                )));
+            }
+            Ok(arr.to_owned())
+        };
+        Ok(TileOutputs {
+            semantic: take(&c.outputs.semantic, NUM_CLASSES)?,
+            center: take(&c.outputs.center, 1)?,
+            offset: take(&c.outputs.offset, 2)?,
+        })
+    }
+}
+
+/// Differences between the session's inputs/outputs and the contract's.
+fn check_io(session: &Session, c: &Contract) -> Vec<String> {
+    let mut problems = Vec::new();
+    let dims = |t: &ValueType| -> Option<Vec<i64>> {
+        match t {
+            ValueType::Tensor { ty, shape, .. } if *ty == ort::value::TensorElementType::Float32 => {
+                Some(shape.iter().copied().collect())
+            }
+            _ => None,
+        }
+    };
+    let inputs = session.inputs();
+    if inputs.len() != 1 || inputs[0].name() != c.input.name {
+        problems.push(format!(
+            "inputs are {:?}, contract expects one input {:?}",
+            inputs.iter().map(|i| i.name()).collect::<Vec<_>>(),
+            c.input.name
+        ));
+    } else {
+        match dims(inputs[0].dtype()) {
+            Some(d) if d.len() == 4 && (d[1] == 3 || d[1] < 0) => {}
+            other => problems.push(format!("input {:?} is {other:?}, contract expects float32 [N, 3, H, W]", c.input.name)),
+        }
+    }
+    for (name, ch) in [(&c.outputs.semantic, NUM_CLASSES as i64), (&c.outputs.center, 1), (&c.outputs.offset, 2)] {
+        match session.outputs().iter().find(|o| o.name() == name) {
+            None => problems.push(format!("no output named {name:?}")),
+            Some(o) => match dims(o.dtype()) {
+                Some(d) if d.len() == 4 && (d[1] == ch || d[1] < 0) => {}
+                other => problems.push(format!("output {name:?} is {other:?}, contract expects float32 [N, {ch}, H, W]")),
+            },
+        }
+    }
+    problems
+}

@@ -1,0 +1,87 @@
+//! Overlays for a person to check a count: instances in distinct colours over
+//! the original image, centres marked, the count written in the corner.
+
+use font8x8::UnicodeFonts;
+use image::{Rgb, RgbImage};
+use phyllo_contract::Contract;
+
+use crate::counter::Analysis;
+
+/// Draws `analysis` over `img` (the original image it was computed from).
+pub fn render(contract: &Contract, img: &RgbImage, analysis: &Analysis, untrained: bool) -> RgbImage {
+    let mut out = img.clone();
+    let pan = &analysis.panoptic;
+    let canvas = &analysis.canvas;
+    let s = contract.outputs.stride as f32;
+    for (x, y, p) in out.enumerate_pixels_mut() {
+        let cx = (x as f32 + 0.5) * canvas.scale - canvas.origin[0] as f32;
+        let cy = (y as f32 + 0.5) * canvas.scale - canvas.origin[1] as f32;
+        if cx < 0.0 || cy < 0.0 {
+            continue;
+        }
+        let (ox, oy) = ((cx / s) as usize, (cy / s) as usize);
+        if ox >= pan.width || oy >= pan.height {
+            continue;
+        }
+        let id = pan.instance[oy * pan.width + ox];
+        if id == 0 {
+            continue;
+        }
+        let class = pan.segments[id as usize - 1].class;
+        let colour = contract.mask_colour(class, id as u16);
+        for c in 0..3 {
+            p.0[c] = ((u16::from(p.0[c]) + 2 * u16::from(colour[c])) / 3) as u8;
+        }
+    }
+    let mark = (img.width().max(img.height()) / 300).max(2) as i64;
+    for inst in &analysis.result.instances {
+        let (x, y) = (inst.centre[0] as i64, inst.centre[1] as i64);
+        for d in -mark * 2..=mark * 2 {
+            for t in -mark / 2..=mark / 2 {
+                put(&mut out, x + d, y + t, Rgb([255, 255, 255]));
+                put(&mut out, x + t, y + d, Rgb([255, 255, 255]));
+            }
+        }
+    }
+    let mut label = format!("{} leaves", analysis.result.leaf_count);
+    if untrained {
+        label.push_str(" (UNTRAINED MODEL)");
+    }
+    let scale = (img.height() / 160).clamp(2, 8);
+    text(&mut out, &label, 8, 8, scale);
+    out
+}
+
+fn put(img: &mut RgbImage, x: i64, y: i64, c: Rgb<u8>) {
+    if x >= 0 && y >= 0 && (x as u32) < img.width() && (y as u32) < img.height() {
+        img.put_pixel(x as u32, y as u32, c);
+    }
+}
+
+/// Writes `s` in white on a black box at (x, y), each font pixel `scale` wide.
+fn text(img: &mut RgbImage, s: &str, x: u32, y: u32, scale: u32) {
+    let w = (s.chars().count() as u32 * 8 + 4) * scale;
+    let h = 12 * scale;
+    for yy in y..y + h {
+        for xx in x..x + w {
+            put(img, xx.into(), yy.into(), Rgb([0, 0, 0]));
+        }
+    }
+    for (i, ch) in s.chars().enumerate() {
+        let Some(glyph) = font8x8::BASIC_FONTS.get(ch) else { continue };
+        for (row, bits) in glyph.iter().enumerate() {
+            for col in 0..8 {
+                if bits & (1 << col) == 0 {
+                    continue;
+                }
+                for dy in 0..scale {
+                    for dx in 0..scale {
+                        let px = x + (2 + i as u32 * 8 + col) * scale + dx;
+                        let py = y + (2 + row as u32) * scale + dy;
+                        put(img, px.into(), py.into(), Rgb([255, 255, 255]));
+                    }
+                }
+            }
+        }
+    }
+}

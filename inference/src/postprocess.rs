@@ -1,0 +1,291 @@
+//! Panoptic-DeepLab post-processing: from the three model heads to instances.
+//!
+//! 1. semantic argmax per pixel;
+//! 2. instance centres = local maxima of the centre heatmap above a threshold
+//!    after max-pool NMS, keeping the `top_k` strongest;
+//! 3. every "thing" pixel moves by its predicted offset and joins the nearest
+//!    centre, so pieces of one leaf split by an occluding leaf still join one
+//!    instance;
+//! 4. each instance takes the majority class of its pixels;
+//! 5. instances smaller than the minimum area are dropped.
+//!
+//! Everything here works in output pixels (the model's stride).
+
+use ndarray::{Array2, Array3};
+use phyllo_contract::{Contract, PostprocessDefaults, NUM_CLASSES};
+use serde::{Deserialize, Serialize};
+
+/// The three heads of a Panoptic-DeepLab model for one image (or one stitched canvas).
+#[derive(Debug, Clone)]
+pub struct RawOutputs {
+    /// Semantic logits, `[classes, h, w]`.
+    pub semantic: Array3<f32>,
+    /// Centre heatmap, `[h, w]`.
+    pub center: Array2<f32>,
+    /// Offsets `(dy, dx)` to the instance centre in output pixels, `[2, h, w]`.
+    pub offset: Array3<f32>,
+}
+
+impl RawOutputs {
+    /// All-zero outputs of `h` x `w` output pixels.
+    pub fn zeros(h: usize, w: usize) -> Self {
+        Self {
+            semantic: Array3::zeros((NUM_CLASSES, h, w)),
+            center: Array2::zeros((h, w)),
+            offset: Array3::zeros((2, h, w)),
+        }
+    }
+
+    /// Height and width in output pixels.
+    pub fn dim(&self) -> (usize, usize) {
+        self.center.dim()
+    }
+}
+
+/// Post-processing parameters (defaults from the contract).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PostprocessParams {
+    /// Minimum heatmap value of a centre.
+    pub center_threshold: f32,
+    /// Max-pool kernel side for centre NMS (odd), in output pixels.
+    pub nms_kernel: u32,
+    /// Most centres kept.
+    pub top_k: usize,
+    /// Smallest instance kept, in output pixels.
+    pub min_leaf_area: u32,
+}
+
+impl From<&PostprocessDefaults> for PostprocessParams {
+    fn from(d: &PostprocessDefaults) -> Self {
+        Self {
+            center_threshold: d.center_threshold,
+            nms_kernel: d.nms_kernel,
+            top_k: d.top_k,
+            min_leaf_area: d.min_leaf_area,
+        }
+    }
+}
+
+impl Default for PostprocessParams {
+    fn default() -> Self {
+        (&Contract::embedded().postprocess).into()
+    }
+}
+
+/// One instance found by post-processing, in output pixels.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Segment {
+    /// Instance number, from 1, in order of decreasing centre score.
+    pub id: u32,
+    /// Majority semantic class of its pixels.
+    pub class: u8,
+    /// Number of pixels.
+    pub area: u32,
+    /// Bounding box `[x0, y0, x1, y1]`, x1 and y1 exclusive.
+    pub bbox: [u32; 4],
+    /// Centre `[x, y]` (the heatmap peak).
+    pub centre: [f32; 2],
+    /// Heatmap peak times mean class probability of its pixels.
+    pub score: f32,
+}
+
+/// Panoptic segmentation of one image, in output pixels.
+#[derive(Debug, Clone)]
+pub struct Panoptic {
+    /// Height in output pixels.
+    pub height: usize,
+    /// Width in output pixels.
+    pub width: usize,
+    /// Semantic class per pixel (row-major).
+    pub semantic: Vec<u8>,
+    /// Instance id per pixel, 0 for none (row-major).
+    pub instance: Vec<u32>,
+    /// Instances that passed the minimum area.
+    pub segments: Vec<Segment>,
+}
+
+impl Panoptic {
+    /// Number of instances of `class`.
+    pub fn count(&self, class: u8) -> usize {
+        self.segments.iter().filter(|s| s.class == class).count()
+    }
+}
+
+/// Instance centres `(y, x, score)`, strongest first.
+pub fn find_centres(center: &Array2<f32>, params: &PostprocessParams) -> Vec<(usize, usize, f32)> {
+    let (h, w) = center.dim();
+    let r = (params.nms_kernel / 2) as usize;
+    let heat = center.as_standard_layout();
+    let heat = heat.as_slice().expect("standard layout");
+    // Separable max filter: rows, then columns.
+    let mut row_max = vec![f32::NEG_INFINITY; h * w];
+    for y in 0..h {
+        let row = &heat[y * w..(y + 1) * w];
+        for x in 0..w {
+            let (a, b) = (x.saturating_sub(r), (x + r + 1).min(w));
+            row_max[y * w + x] = row[a..b].iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        }
+    }
+    let mut peaks = Vec::new();
+    for y in 0..h {
+        let (a, b) = (y.saturating_sub(r), (y + r + 1).min(h));
+        for x in 0..w {
+            let v = heat[y * w + x];
+            if v < params.center_threshold {
+                continue;
+            }
+            let m = (a..b).map(|yy| row_max[yy * w + x]).fold(f32::NEG_INFINITY, f32::max);
+            if v < m {
+                continue;
+            }
+            // A plateau would give several equal maxima: keep the first in
+            // raster order so one peak yields one centre.
+            let earlier_tie = (a..=y).any(|yy| {
+                let (xa, xb) = (x.saturating_sub(r), (x + r + 1).min(w));
+                (xa..xb).any(|xx| (yy < y || xx < x) && heat[yy * w + xx] == v)
+            });
+            if !earlier_tie {
+                peaks.push((y, x, v));
+            }
+        }
+    }
+    peaks.sort_by(|a, b| b.2.total_cmp(&a.2).then((a.0, a.1).cmp(&(b.0, b.1))));
+    peaks.truncate(params.top_k);
+    peaks
+}
+
+/// Runs the whole post-processing on `out`.
+pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParams) -> Panoptic {
+    let (h, w) = out.dim();
+    let n = h * w;
+    let sem = out.semantic.as_standard_layout();
+    let sem = sem.as_slice().expect("standard layout");
+    let off = out.offset.as_standard_layout();
+    let off = off.as_slice().expect("standard layout");
+
+    // Semantic argmax and its softmax probability.
+    let mut semantic = vec![0u8; n];
+    let mut prob = vec![0f32; n];
+    for i in 0..n {
+        let logits: [f32; NUM_CLASSES] = std::array::from_fn(|c| sem[c * n + i]);
+        let (best, &top) = logits.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).expect("4 classes");
+        let denom: f32 = logits.iter().map(|&l| (l - top).exp()).sum();
+        semantic[i] = best as u8;
+        prob[i] = 1.0 / denom;
+    }
+
+    let centres = find_centres(&out.center, params);
+    let mut instance = vec![0u32; n];
+    let k = centres.len();
+    let mut class_votes = vec![[0u32; NUM_CLASSES]; k];
+    if k > 0 {
+        let cy: Vec<f32> = centres.iter().map(|c| c.0 as f32).collect();
+        let cx: Vec<f32> = centres.iter().map(|c| c.1 as f32).collect();
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                if !contract.is_thing(semantic[i]) {
+                    continue;
+                }
+                let ty = y as f32 + off[i];
+                let tx = x as f32 + off[n + i];
+                let mut best = 0;
+                let mut best_d = f32::INFINITY;
+                for j in 0..k {
+                    let d = (cy[j] - ty).powi(2) + (cx[j] - tx).powi(2);
+                    if d < best_d {
+                        best_d = d;
+                        best = j;
+                    }
+                }
+                instance[i] = best as u32 + 1;
+                class_votes[best][semantic[i] as usize] += 1;
+            }
+        }
+    }
+
+    // Per-instance statistics.
+    struct Acc {
+        area: u32,
+        bbox: [u32; 4],
+        prob_sum: f32,
+    }
+    let mut acc: Vec<Acc> =
+        (0..k).map(|_| Acc { area: 0, bbox: [u32::MAX, u32::MAX, 0, 0], prob_sum: 0.0 }).collect();
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let id = instance[i];
+            if id == 0 {
+                continue;
+            }
+            let a = &mut acc[id as usize - 1];
+            a.area += 1;
+            a.prob_sum += prob[i];
+            let (x, y) = (x as u32, y as u32);
+            a.bbox = [a.bbox[0].min(x), a.bbox[1].min(y), a.bbox[2].max(x + 1), a.bbox[3].max(y + 1)];
+        }
+    }
+    // Keep instances above the minimum area; renumber densely in score order.
+    let mut renumber = vec![0u32; k + 1];
+    let mut segments = Vec::new();
+    for (j, a) in acc.iter().enumerate() {
+        if a.area < params.min_leaf_area.max(1) {
+            continue;
+        }
+        let class = class_votes[j]
+            .iter()
+            .enumerate()
+            .max_by_key(|(c, v)| (**v, std::cmp::Reverse(*c)))
+            .map(|(c, _)| c as u8)
+            .expect("4 classes");
+        let id = segments.len() as u32 + 1;
+        renumber[j + 1] = id;
+        let (py, px, peak) = centres[j];
+        segments.push(Segment {
+            id,
+            class,
+            area: a.area,
+            bbox: a.bbox,
+            centre: [px as f32, py as f32],
+            score: peak.min(1.0) * a.prob_sum / a.area as f32,
+        });
+    }
+    for v in instance.iter_mut() {
+        *v = renumber[*v as usize];
+    }
+    Panoptic { height: h, width: w, semantic, instance, segments }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params() -> PostprocessParams {
+        PostprocessParams { center_threshold: 0.1, nms_kernel: 7, top_k: 10, min_leaf_area: 1 }
+    }
+
+    #[test]
+    fn nms_keeps_one_centre_per_peak_even_on_a_plateau() {
+        let mut c = Array2::zeros((20, 20));
+        c[[5, 5]] = 0.9;
+        c[[5, 6]] = 0.5;
+        c[[15, 15]] = 0.7;
+        c[[15, 16]] = 0.7;
+        c[[2, 18]] = 0.05; // below threshold
+        let got = find_centres(&c, &params());
+        assert_eq!(got, vec![(5, 5, 0.9), (15, 15, 0.7)]);
+    }
+
+    #[test]
+    fn top_k_keeps_the_strongest() {
+        let mut c = Array2::zeros((10, 40));
+        for i in 0..4 {
+            c[[5, 5 + 10 * i]] = 0.2 + 0.1 * i as f32;
+        }
+        let p = PostprocessParams { top_k: 2, ..params() };
+        let got: Vec<_> = find_centres(&c, &p).iter().map(|c| c.1).collect();
+        assert_eq!(got, vec![35, 25]);
+    }
+}

@@ -1,0 +1,262 @@
+//! Bringing an image to the contract's scale and cutting it into model tiles.
+//!
+//! The model was trained on plants seen at one pixels-per-metre; this module
+//! resizes every input to that scale (the contract's scale rule), crops the
+//! plant's region, and lays out overlapping tiles over that crop (the
+//! "canvas"). Tile origins are multiples of the output stride so that every
+//! tile's output grid lines up with the canvas's.
+
+use fast_image_resize as fr;
+use image::RgbImage;
+use ndarray::Array4;
+use phyllo_contract::Contract;
+
+use crate::region::{plant_bbox, RegionMode};
+
+/// Scale factor (model pixels per original pixel) for an image of `w` x `h`.
+///
+/// Camera frames, recognised by their aspect ratio, are resized to the
+/// contract's frame height, whatever the camera's resolution; anything else
+/// is taken as a crop around one plant and resized so its longer side is the
+/// contract's crop size.
+pub fn scale_for(contract: &Contract, w: u32, h: u32) -> f32 {
+    let spec = &contract.input;
+    let aspect = w as f32 / h as f32;
+    if (aspect / spec.frame_aspect - 1.0).abs() <= spec.frame_aspect_tolerance {
+        spec.frame_height as f32 / h as f32
+    } else {
+        spec.crop_long_side as f32 / w.max(h) as f32
+    }
+}
+
+/// Resizes `img` by `scale` with a bilinear filter (SIMD, via fast_image_resize).
+pub fn resize(img: &RgbImage, scale: f32) -> RgbImage {
+    let (w, h) = img.dimensions();
+    let nw = ((w as f32 * scale).round() as u32).max(1);
+    let nh = ((h as f32 * scale).round() as u32).max(1);
+    if (nw, nh) == (w, h) {
+        return img.clone();
+    }
+    let src = fr::images::ImageRef::new(w, h, img.as_raw(), fr::PixelType::U8x3)
+        .expect("an RgbImage buffer is w*h*3 bytes");
+    let mut dst = fr::images::Image::new(nw, nh, fr::PixelType::U8x3);
+    let options = fr::ResizeOptions::new().resize_alg(fr::ResizeAlg::Convolution(fr::FilterType::Bilinear));
+    fr::Resizer::new().resize(&src, &mut dst, &options).expect("pixel types match");
+    RgbImage::from_raw(nw, nh, dst.into_vec()).expect("resizer output is nw*nh*3 bytes")
+}
+
+/// The canvas the tiles are cut from, and how to map it back.
+#[derive(Debug, Clone)]
+pub struct Canvas {
+    /// Pixels at model scale, padded to at least one tile per side and to a
+    /// multiple of the output stride.
+    pub image: RgbImage,
+    /// Model pixels per original pixel.
+    pub scale: f32,
+    /// Position of the canvas's top-left pixel in the scaled image (negative
+    /// where the canvas is padded beyond the image).
+    pub origin: [i64; 2],
+    /// Plant region in original-image pixels `[x0, y0, x1, y1]`.
+    pub region: [u32; 4],
+    /// Top-left corners of the tiles, in canvas pixels.
+    pub tiles: Vec<[u32; 2]>,
+}
+
+impl Canvas {
+    /// Maps a canvas position (model pixels) to original-image pixels.
+    pub fn to_original(&self, x: f32, y: f32) -> [f32; 2] {
+        [(x + self.origin[0] as f32) / self.scale, (y + self.origin[1] as f32) / self.scale]
+    }
+}
+
+/// Scales `img`, chooses the region to look at and lays out the tiles.
+pub fn prepare(contract: &Contract, img: &RgbImage, mode: RegionMode) -> Canvas {
+    let tile = contract.input.tile;
+    let stride = contract.outputs.stride;
+    let scale = scale_for(contract, img.width(), img.height());
+    let scaled = resize(img, scale);
+    let (sw, sh) = scaled.dimensions();
+
+    // The region in scaled pixels.
+    let [rx0, ry0, rx1, ry1] = match mode {
+        RegionMode::Full => [0, 0, sw, sh],
+        RegionMode::Fixed { x0, y0, x1, y1 } => {
+            let s = |v: u32, max: u32| ((v as f32 * scale).round() as u32).min(max);
+            let (a, b, c, d) = (s(x0, sw), s(y0, sh), s(x1, sw), s(y1, sh));
+            if c > a && d > b {
+                [a, b, c, d]
+            } else {
+                [0, 0, sw, sh]
+            }
+        }
+        RegionMode::Auto => plant_bbox(&scaled, 0.003, 12, 40).unwrap_or([0, 0, sw, sh]),
+    };
+
+    // Grow the region to at least one tile per side, centred on the plant,
+    // then round up to the stride; beyond the image the canvas is padded.
+    let span = |lo: u32, hi: u32, len: u32| -> (i64, u32) {
+        let want = (hi - lo).max(tile);
+        let want = want.div_ceil(stride) * stride;
+        let centre = (i64::from(lo) + i64::from(hi)) / 2;
+        let mut start = centre - i64::from(want) / 2;
+        // Prefer real pixels over padding where the image is big enough.
+        if i64::from(len) >= i64::from(want) {
+            start = start.clamp(0, i64::from(len - want));
+        } else {
+            start = -(i64::from(want - len) / 2);
+        }
+        (start, want)
+    };
+    let (ox, cw) = span(rx0, rx1, sw);
+    let (oy, ch) = span(ry0, ry1, sh);
+    let fill = border_colour(&scaled);
+    let mut canvas = RgbImage::from_pixel(cw, ch, fill);
+    for y in 0..ch {
+        let sy = i64::from(y) + oy;
+        if sy < 0 || sy >= i64::from(sh) {
+            continue;
+        }
+        for x in 0..cw {
+            let sx = i64::from(x) + ox;
+            if sx >= 0 && sx < i64::from(sw) {
+                canvas.put_pixel(x, y, *scaled.get_pixel(sx as u32, sy as u32));
+            }
+        }
+    }
+    let xs = tile_starts(cw, tile, contract.input.tile_overlap, stride);
+    let ys = tile_starts(ch, tile, contract.input.tile_overlap, stride);
+    let tiles = ys.iter().flat_map(|&y| xs.iter().map(move |&x| [x, y])).collect();
+    let to_orig = |v: u32, len: u32| ((v as f32 / scale).round() as u32).min(len);
+    let region = [
+        to_orig(rx0, img.width()),
+        to_orig(ry0, img.height()),
+        to_orig(rx1, img.width()),
+        to_orig(ry1, img.height()),
+    ];
+    Canvas { image: canvas, scale, origin: [ox, oy], region, tiles }
+}
+
+/// Evenly spaced tile starts covering `len` with at least `overlap` between
+/// neighbours, each a multiple of `stride`.
+pub fn tile_starts(len: u32, tile: u32, overlap: u32, stride: u32) -> Vec<u32> {
+    if len <= tile {
+        return vec![0];
+    }
+    let step = tile - overlap;
+    let n = (len - tile).div_ceil(step) + 1;
+    let last = len - tile;
+    (0..n)
+        .map(|i| {
+            let s = (u64::from(last) * u64::from(i) / u64::from(n - 1)) as u32;
+            (s / stride * stride).min(last / stride * stride)
+        })
+        .collect()
+}
+
+/// Median colour of the image border: what the chamber looks like where the
+/// canvas must be padded.
+fn border_colour(img: &RgbImage) -> image::Rgb<u8> {
+    let (w, h) = img.dimensions();
+    let mut chans: [Vec<u8>; 3] = Default::default();
+    let mut push = |x: u32, y: u32| {
+        let p = img.get_pixel(x, y).0;
+        for c in 0..3 {
+            chans[c].push(p[c]);
+        }
+    };
+    for x in 0..w {
+        push(x, 0);
+        push(x, h - 1);
+    }
+    for y in 0..h {
+        push(0, y);
+        push(w - 1, y);
+    }
+    let med = |v: &mut Vec<u8>| {
+        v.sort_unstable();
+        v[v.len() / 2]
+    };
+    image::Rgb([med(&mut chans[0]), med(&mut chans[1]), med(&mut chans[2])])
+}
+
+/// Fills an NCHW batch with the given tiles, normalised per the contract.
+pub fn batch_tensor(contract: &Contract, canvas: &RgbImage, tiles: &[[u32; 2]]) -> Array4<f32> {
+    let t = contract.input.tile as usize;
+    let spec = &contract.input;
+    let lo = spec.value_range[0];
+    let span = spec.value_range[1] - spec.value_range[0];
+    // A lookup table per channel: 768 floats instead of 3 divisions per pixel.
+    let lut: Vec<[f32; 256]> = (0..3)
+        .map(|c| {
+            let mut l = [0f32; 256];
+            for (v, out) in l.iter_mut().enumerate() {
+                *out = (lo + span * v as f32 / 255.0 - spec.mean[c]) / spec.std[c];
+            }
+            l
+        })
+        .collect();
+    let mut batch = Array4::<f32>::zeros((tiles.len(), 3, t, t));
+    let cw = canvas.width() as usize;
+    let raw = canvas.as_raw();
+    for (n, &[tx, ty]) in tiles.iter().enumerate() {
+        for c in 0..3 {
+            let mut plane = batch.slice_mut(ndarray::s![n, c, .., ..]);
+            let plane = plane.as_slice_mut().expect("fresh array is contiguous");
+            for y in 0..t {
+                let row = ((ty as usize + y) * cw + tx as usize) * 3;
+                let src = &raw[row..row + t * 3];
+                let dst = &mut plane[y * t..(y + 1) * t];
+                for (x, d) in dst.iter_mut().enumerate() {
+                    *d = lut[c][src[x * 3 + c] as usize];
+                }
+            }
+        }
+    }
+    batch
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tile_starts_cover_with_overlap_on_stride() {
+        assert_eq!(tile_starts(512, 512, 128, 2), vec![0]);
+        assert_eq!(tile_starts(300, 512, 128, 2), vec![0]);
+        let s = tile_starts(1300, 512, 128, 2);
+        assert_eq!(*s.first().unwrap(), 0);
+        assert_eq!(*s.last().unwrap() + 512, 1300);
+        for w in s.windows(2) {
+            assert!(w[0] + 512 >= w[1] + 128, "{s:?}");
+        }
+        assert!(s.iter().all(|v| v % 2 == 0));
+    }
+
+    #[test]
+    fn frames_and_crops_get_the_contract_scale() {
+        let c = Contract::embedded();
+        assert!((scale_for(c, 2454, 2056) - 0.25).abs() < 1e-6);
+        assert!((scale_for(c, 1227, 1028) - 0.5).abs() < 1e-6);
+        assert!((scale_for(c, 225, 198) - 448.0 / 225.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn canvas_maps_back_to_original_pixels() {
+        let c = Contract::embedded();
+        let mut img = RgbImage::from_pixel(2454, 2056, image::Rgb([235, 232, 230]));
+        for y in 800..1600 {
+            for x in 1000..1200 {
+                img.put_pixel(x, y, image::Rgb([50, 120, 40]));
+            }
+        }
+        let canvas = prepare(c, &img, RegionMode::Auto);
+        assert_eq!(canvas.image.width() % 2, 0);
+        assert!(canvas.image.width() >= 512 && canvas.image.height() >= 512);
+        let [x0, y0, x1, y1] = canvas.region;
+        assert!(x0 <= 1000 && x1 >= 1200 && y0 <= 800 && y1 >= 1600, "{:?}", canvas.region);
+        let [ox, oy] = canvas.to_original(0.0, 0.0);
+        assert!(ox >= 0.0 && oy >= 0.0);
+        let batch = batch_tensor(c, &canvas.image, &canvas.tiles);
+        assert_eq!(batch.shape(), &[canvas.tiles.len(), 3, 512, 512]);
+    }
+}
