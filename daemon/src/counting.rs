@@ -24,3 +24,47 @@ pub trait LeafCounter: Send + Sync {
     /// Identifies the model, stored with every observation.
     fn model_id(&self) -> String;
 }
+
+/// Builds the production counter (ONNX Runtime) from `[inference]`.
+pub fn onnx_counter(cfg: &crate::config::InferenceConfig) -> anyhow::Result<std::sync::Arc<dyn LeafCounter>> {
+    let counter = phyllo_inference::Counter::new(phyllo_inference::CounterConfig {
+        model: cfg.model.clone(),
+        ort_lib: cfg.ort_lib.clone(),
+        intra_threads: cfg.intra_threads,
+        batch_size: cfg.batch_size,
+        ..phyllo_inference::CounterConfig::default()
+    })?;
+    Ok(std::sync::Arc::new(counter))
+}
+
+impl LeafCounter for phyllo_inference::Counter {
+    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError> {
+        use phyllo_inference::InferenceError as E;
+        match self.count_bytes(name, bytes) {
+            Ok(r) => Ok(CountRecord {
+                leaf_count: r.leaf_count,
+                instances: serde_json::to_value(&r.instances).unwrap_or_default(),
+                timing: serde_json::json!({
+                    "ms": r.ms,
+                    "tiles": r.tiles,
+                    "image_size": r.image_size,
+                    "region": r.region,
+                }),
+                ms_total: r.ms.total,
+                model_id: self.model_id(),
+            }),
+            Err(e) => {
+                // Bad image data will fail the same way every time; runtime trouble may pass.
+                let retry = !matches!(e, E::Image { .. });
+                Err(CountError {
+                    message: e.to_string(),
+                    retry,
+                })
+            }
+        }
+    }
+
+    fn model_id(&self) -> String {
+        phyllo_inference::Counter::model_id(self)
+    }
+}

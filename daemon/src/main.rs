@@ -9,6 +9,7 @@ fn main() {
     let builder = tracing_subscriber::fmt()
         .with_env_filter(EnvFilter::try_from_env("PHYLLO_LOG").unwrap_or_else(|_| EnvFilter::new("info")))
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_target(false);
     if under_systemd {
         builder.without_time().init();

@@ -17,8 +17,8 @@ pub struct Args {
 }
 
 /// Builds the model's counter from the config.
-pub fn make_counter(_cfg: &Config) -> anyhow::Result<Arc<dyn LeafCounter>> {
-    anyhow::bail!("this build of phyllo has no inference core (phyllo-inference not linked yet)")
+pub fn make_counter(cfg: &Config) -> anyhow::Result<Arc<dyn LeafCounter>> {
+    crate::counting::onnx_counter(&cfg.inference)
 }
 
 /// Runs the service until SIGTERM or SIGINT.

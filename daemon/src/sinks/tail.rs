@@ -70,20 +70,30 @@ pub fn follow(
     out: &mut dyn Write,
     stop: &dyn Fn() -> bool,
 ) -> anyhow::Result<()> {
-    // Wait for the service to create the database, so tail can start first.
+    // Wait for the service to create (and migrate) the database, so tail can start
+    // first. Everything in a database that did not exist yet is new to us.
+    let existed = db.exists();
+    let mut complained = false;
     let store = loop {
         match Store::open_read_only(db) {
             Ok(s) => break s,
-            Err(e) if !db.exists() => {
+            Err(e) => {
                 if stop() {
                     return Err(e);
                 }
+                if !complained {
+                    eprintln!("phyllo tail: waiting for the database: {e:#}");
+                    complained = true;
+                }
                 std::thread::sleep(POLL);
             }
-            Err(e) => return Err(e),
         }
     };
-    let mut seq = if from_start { 0 } else { store.feed_head()? };
+    let mut seq = if from_start || !existed {
+        0
+    } else {
+        store.feed_head()?
+    };
     loop {
         // Read once more after a stop request, so nothing committed before it is missed.
         let stopping = stop();
