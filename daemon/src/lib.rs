@@ -1,8 +1,28 @@
-//! phyllo: the leaf-counting service and its command-line interface.
+//! phyllo: the leaf-counting daemon and its operator commands.
 //!
-//! The inference core lives in the `phyllo-inference` crate and is re-exported
-//! here as [`inference`]; this crate adds the operator-facing commands.
+//! Data flows one way, each stage in its own module (sources → transforms →
+//! sinks, as in Vector; the service shape follows tokio's mini-redis):
+//!
+//! ```text
+//! source::watch / source::scan ─► source::intake (stability, dedupe) ─► bounded queue
+//!   ─► worker (hash, names, counter off the async runtime) ─► store (one transaction per image)
+//!   ─► timeline (view fusion, isotonic fit, events) ─► sinks: tail, export, plot, status
+//! ```
+//!
+//! [`config`] is the TOML file; [`service`] wires the stages for `phyllo serve`.
+//! The inference core (image → leaf count) is the `phyllo-inference` crate,
+//! re-exported as [`inference`].
 
 pub use phyllo_inference as inference;
 
 pub mod cli;
+pub mod config;
+pub mod counting;
+pub mod names;
+pub mod service;
+pub mod sinks;
+pub mod source;
+pub mod store;
+pub mod systemd;
+pub mod timeline;
+pub mod worker;

@@ -1,0 +1,151 @@
+//! `phyllo import --config FILE OBS.csv`: counts made elsewhere (by people or
+//! another tool) become observations, fused and fitted like the model's.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use chrono::{NaiveDate, NaiveDateTime};
+
+use super::ConfigArg;
+use crate::names::View;
+use crate::store::Store;
+
+/// Arguments of `phyllo import`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    config: ConfigArg,
+    /// CSV with a header row and columns plant,timestamp,view,leaf_count
+    /// (other columns are ignored). Timestamps: ISO 8601 (`2018-04-20T10:32:16`,
+    /// a space instead of `T`, or a date alone for noon), facility local time.
+    #[arg(value_name = "OBS.csv")]
+    file: PathBuf,
+}
+
+/// Runs `phyllo import`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let config = args.config.load()?;
+    let rows = read_rows(&args.file)?;
+    let mut store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
+    let source = args
+        .file
+        .file_name()
+        .map_or("import".into(), |n| n.to_string_lossy().into_owned());
+    let (n, plants) = store.import(&source, &rows)?;
+    println!(
+        "imported {n} counts for {plants} plants from {}",
+        args.file.display()
+    );
+    Ok(())
+}
+
+/// Reads and validates the CSV; errors name the file, line and problem.
+pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Vec<(String, NaiveDateTime, View, u32)>> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_path(path)
+        .with_context(|| format!("reading {}", path.display()))?;
+    let headers = rdr
+        .headers()
+        .with_context(|| format!("{}: header row", path.display()))?
+        .clone();
+    let col = |name: &str| -> anyhow::Result<usize> {
+        headers
+            .iter()
+            .position(|h| h.eq_ignore_ascii_case(name))
+            .with_context(|| {
+                format!(
+                    "{}: no '{name}' column (need plant,timestamp,view,leaf_count; have {:?})",
+                    path.display(),
+                    headers
+                )
+            })
+    };
+    let (cp, ct, cv, cc) = (col("plant")?, col("timestamp")?, col("view")?, col("leaf_count")?);
+    let mut rows = Vec::new();
+    for (i, rec) in rdr.records().enumerate() {
+        let line = i + 2;
+        let rec = rec.with_context(|| format!("{}:{line}", path.display()))?;
+        let field = |c: usize| rec.get(c).unwrap_or("").to_string();
+        let plant = field(cp);
+        if plant.is_empty() {
+            bail!("{}:{line}: empty plant", path.display());
+        }
+        let ts = field(ct);
+        let taken_at =
+            parse_timestamp(&ts).with_context(|| format!("{}:{line}: timestamp '{ts}'", path.display()))?;
+        let view = field(cv);
+        if view.is_empty() {
+            bail!("{}:{line}: empty view", path.display());
+        }
+        let count = field(cc);
+        let count: u32 = count
+            .parse()
+            .with_context(|| format!("{}:{line}: leaf_count '{count}' is not a count", path.display()))?;
+        rows.push((plant, taken_at, View::parse(&view), count));
+    }
+    Ok(rows)
+}
+
+/// Parses the timestamp forms `phyllo import` accepts.
+pub fn parse_timestamp(s: &str) -> anyhow::Result<NaiveDateTime> {
+    if let Ok(t) = chrono::DateTime::parse_from_rfc3339(s) {
+        // An explicit offset: keep the wall-clock time, as file names carry no offset.
+        return Ok(t.naive_local());
+    }
+    for f in [
+        "%Y-%m-%dT%H:%M:%S%.f",
+        "%Y-%m-%d %H:%M:%S%.f",
+        "%Y-%m-%dT%H:%M",
+        "%Y-%m-%d %H:%M",
+        "%Y-%m-%d_%H-%M-%S%.f",
+    ] {
+        if let Ok(t) = NaiveDateTime::parse_from_str(s, f) {
+            return Ok(t);
+        }
+    }
+    let d = NaiveDate::parse_from_str(s, "%Y-%m-%d").context("expected ISO 8601 date or date-time")?;
+    Ok(d.and_hms_opt(12, 0, 0).expect("noon exists"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn timestamps() {
+        let want = NaiveDate::from_ymd_opt(2018, 4, 20)
+            .unwrap()
+            .and_hms_opt(10, 32, 16)
+            .unwrap();
+        for s in [
+            "2018-04-20T10:32:16",
+            "2018-04-20 10:32:16",
+            "2018-04-20T10:32:16+02:00",
+            "2018-04-20_10-32-16",
+        ] {
+            assert_eq!(parse_timestamp(s).unwrap(), want, "{s}");
+        }
+        assert_eq!(
+            parse_timestamp("2018-04-20").unwrap().format("%H").to_string(),
+            "12"
+        );
+        assert!(parse_timestamp("20/04/2018").is_err());
+    }
+
+    #[test]
+    fn bad_rows_name_file_and_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("obs.csv");
+        std::fs::write(
+            &p,
+            "plant,timestamp,view,leaf_count\nP1,2018-04-20,SV_108,9\nP1,2018-04-21,SV_108,nine\n",
+        )
+        .unwrap();
+        let err = format!("{:#}", read_rows(&p).unwrap_err());
+        assert!(err.contains("obs.csv:3") && err.contains("nine"), "{err}");
+        std::fs::write(&p, "plant,time,view,leaf_count\n").unwrap();
+        let err = format!("{:#}", read_rows(&p).unwrap_err());
+        assert!(err.contains("no 'timestamp' column"), "{err}");
+    }
+}

@@ -1,0 +1,75 @@
+//! `phyllo status --config FILE [--json]`.
+
+use super::ConfigArg;
+use crate::store::Store;
+
+/// Arguments of `phyllo status`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    config: ConfigArg,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+/// A heartbeat older than this means the service is not running.
+const STALE_SECS: i64 = 15;
+
+/// Runs `phyllo status`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let config = args.config.load()?;
+    let store = Store::open_read_only(&config.database)?;
+    let svc = store.service()?;
+    let counts = store.image_counts()?;
+    let last = store.last_image()?;
+    let failures = store.recent_failures(5)?;
+    let get = |k: &str| svc.get(k).cloned().unwrap_or_else(|| "-".into());
+    let heartbeat_age = svc
+        .get("heartbeat")
+        .and_then(|h| chrono::DateTime::parse_from_rfc3339(h).ok())
+        .map(|h| (chrono::Utc::now() - h.with_timezone(&chrono::Utc)).num_seconds());
+    let state = match (svc.get("state").map(String::as_str), heartbeat_age) {
+        (Some("running"), Some(age)) if age > STALE_SECS => {
+            format!("not running (last heartbeat {age} s ago)")
+        }
+        (Some(s), _) => s.to_string(),
+        (None, _) => "never started".into(),
+    };
+    if args.json {
+        let v = serde_json::json!({
+            "state": state,
+            "service": svc,
+            "images": counts,
+            "last_image": last,
+            "recent_failures": failures,
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!(
+        "service:   {state} (pid {}, since {})",
+        get("pid"),
+        get("started_at")
+    );
+    println!("model:     {}", get("model"));
+    println!("drop dir:  {}", config.drop_dir.display());
+    println!("database:  {}", config.database.display());
+    println!(
+        "queue:     {} queued, {} being counted",
+        get("queued"),
+        get("busy")
+    );
+    println!(
+        "images:    {} counted, {} duplicates, {} failed; {} imported counts; {} plants",
+        counts.counted, counts.duplicate, counts.failed, counts.imported, counts.plants
+    );
+    match last {
+        Some(l) => println!("last:      {} ({}, {})", l.path, l.state, l.at),
+        None => println!("last:      -"),
+    }
+    for (path, err) in failures {
+        println!("failed:    {path}: {err}");
+    }
+    Ok(())
+}

@@ -1,0 +1,88 @@
+//! `phyllo timeline --config FILE PLANT [--plot OUT.png] [--json]`.
+
+use std::path::PathBuf;
+
+use anyhow::bail;
+
+use super::ConfigArg;
+use crate::store::{PlantTimeline, Store};
+
+/// Arguments of `phyllo timeline`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    config: ConfigArg,
+    /// Plant id.
+    plant: String,
+    /// Also draw the timeline into this PNG.
+    #[arg(long, value_name = "OUT.png")]
+    plot: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `phyllo timeline`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let config = args.config.load()?;
+    let store = Store::open_read_only(&config.database)?;
+    let Some(t) = store.plant_timeline(&args.plant)? else {
+        let plants = store.plants()?;
+        let some: Vec<&str> = plants.iter().take(10).map(|s| s.as_str()).collect();
+        bail!(
+            "no plant '{}' in {} ({} plants, e.g. {})",
+            args.plant,
+            config.database.display(),
+            plants.len(),
+            some.join(", ")
+        );
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&t)?);
+    } else {
+        print!("{}", render(&t));
+    }
+    if let Some(out) = &args.plot {
+        crate::sinks::plot::plot(&t, out)?;
+        eprintln!("plot written to {}", out.display());
+    }
+    Ok(())
+}
+
+/// The timeline as a text table.
+pub fn render(t: &PlantTimeline) -> String {
+    let mut views: Vec<&String> = t.sessions.iter().flat_map(|s| s.views.keys()).collect();
+    views.sort();
+    views.dedup();
+    let mut s = format!("plant {}\n", t.plant);
+    s += &format!("{:<24}", "session");
+    for v in &views {
+        s += &format!("{v:>8}");
+    }
+    s += &format!("{:>8}{:>9}{:>8}\n", "fused", "emerged", "living");
+    for row in &t.sessions {
+        s += &format!("{:<24}", row.start);
+        for v in &views {
+            match row.views.get(*v) {
+                Some(c) => s += &format!("{c:>8}"),
+                None => s += &format!("{:>8}", "-"),
+            }
+        }
+        s += &format!(
+            "{:>8.1}{:>9.2}{:>8.1}\n",
+            row.fused, row.leaves_emerged, row.living
+        );
+    }
+    s += "emergence events:\n";
+    if t.events.is_empty() {
+        s += "  (none yet: need a rise in the fitted count after the first session)\n";
+    }
+    for (leaf, at, seen) in &t.events {
+        s += &format!("  leaf {leaf:>2} emerged about {at} (first counted {seen})\n");
+    }
+    match t.phyllochron_days {
+        Some(p) => s += &format!("phyllochron: {p:.2} days per leaf\n"),
+        None => s += "phyllochron: n/a (fewer than two emergence events)\n",
+    }
+    s
+}

@@ -1,0 +1,298 @@
+//! The daemon's TOML configuration.
+//!
+//! Only `drop_dir` and `database` are required; every other key has a default
+//! chosen for the UNL LemnaTec facility. Every key is documented, with its
+//! default, in `systemd/phyllo.toml.example`; a unit test checks that the
+//! example parses and that it mentions every key, so the two cannot drift.
+//! Unknown keys are refused (`deny_unknown_fields`) so that a typo is an error
+//! at start-up rather than a silently ignored setting.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use serde::Deserialize;
+
+/// The whole configuration file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    /// Directory the imaging station drops images into; watched recursively.
+    pub drop_dir: PathBuf,
+    /// SQLite database file (created with its parent directory if missing).
+    pub database: PathBuf,
+    /// How the drop directory is watched.
+    #[serde(default)]
+    pub watch: WatchConfig,
+    /// How file names map to plant, time and view.
+    #[serde(default)]
+    pub names: NamesConfig,
+    /// The worker pool and the model.
+    #[serde(default)]
+    pub inference: InferenceConfig,
+    /// How views are fused and the timeline is fitted.
+    #[serde(default)]
+    pub timeline: TimelineConfig,
+    /// Where `phyllo export` writes when no `--out` is given.
+    #[serde(default)]
+    pub export: ExportConfig,
+}
+
+/// `[watch]`: intake from the drop directory.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct WatchConfig {
+    /// File extensions (case-insensitive, without dot) that are images.
+    pub extensions: Vec<String>,
+    /// Skip files and directories whose name starts with a dot: writers that
+    /// rename into place usually write a hidden temporary first.
+    pub ignore_hidden: bool,
+    /// Seconds a file's size and mtime must stay unchanged before it is taken,
+    /// for writers that keep the file open (no close-after-write event).
+    pub stable_secs: f64,
+    /// Milliseconds a file must stay unchanged after a close-after-write or a
+    /// rename into the tree: guards against writers that close and reopen.
+    pub settle_ms: u64,
+    /// How often pending files are checked for stability, in milliseconds.
+    pub poll_ms: u64,
+    /// Seconds between full rescans of the drop directory (safety net for
+    /// lost events, queue overflow, a recreated directory). 0 disables.
+    pub rescan_secs: u64,
+}
+
+impl Default for WatchConfig {
+    fn default() -> Self {
+        Self {
+            extensions: ["png", "jpg", "jpeg", "tif", "tiff"]
+                .iter()
+                .map(|s| s.to_string())
+                .collect(),
+            ignore_hidden: true,
+            stable_secs: 5.0,
+            settle_ms: 300,
+            poll_ms: 250,
+            rescan_secs: 600,
+        }
+    }
+}
+
+/// `[names]`: file-name patterns.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NamesConfig {
+    /// Built-in layouts to try, in order: `flat`, `snapshot-dir`, `snapshot-file`.
+    pub presets: Vec<String>,
+    /// Extra patterns, tried before the presets.
+    pub patterns: Vec<PatternConfig>,
+}
+
+impl Default for NamesConfig {
+    fn default() -> Self {
+        Self {
+            presets: crate::names::PRESET_NAMES.iter().map(|s| s.to_string()).collect(),
+            patterns: vec![],
+        }
+    }
+}
+
+/// `[[names.patterns]]`: one custom file-name pattern.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PatternConfig {
+    /// Name shown in errors and in `phyllo status`.
+    pub name: String,
+    /// Regular expression matched against the path relative to the drop
+    /// directory, with `/` separators. Named groups: `plant`, `date`
+    /// (YYYY-MM-DD), `time` (HH-MM-SS, HH:MM:SS or HHMMSS, optional fraction)
+    /// are required; `kind` (`SV`/`side` or `TV`/`top`) and `angle` optional.
+    pub regex: String,
+}
+
+/// `[inference]`: worker pool and model.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct InferenceConfig {
+    /// ONNX model file; unset means the model shipped with phyllo.
+    pub model: Option<PathBuf>,
+    /// ONNX Runtime shared library; unset means the one found at build time
+    /// or through `ORT_DYLIB_PATH`.
+    pub ort_lib: Option<PathBuf>,
+    /// Worker threads taking images from the queue (hash, decode, count, store).
+    pub workers: usize,
+    /// ONNX Runtime intra-op threads per run.
+    pub intra_threads: usize,
+    /// Tiles per ONNX Runtime batch.
+    pub batch_size: usize,
+    /// Images waiting between intake and the workers; intake waits when full.
+    pub queue_capacity: usize,
+    /// Attempts for an image whose failure may be transient (runtime errors).
+    /// Undecodable images and unmatched names are never retried for the same
+    /// content.
+    pub max_attempts: u32,
+}
+
+impl Default for InferenceConfig {
+    fn default() -> Self {
+        Self {
+            model: None,
+            ort_lib: None,
+            workers: 2,
+            intra_threads: 2,
+            batch_size: 4,
+            queue_capacity: 64,
+            max_attempts: 3,
+        }
+    }
+}
+
+/// `[timeline]`: view fusion and the fits across sessions.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TimelineConfig {
+    /// How one session's views become one count: `max-side` (largest side-view
+    /// count; top view only if there is no side view), `max` (all views),
+    /// `median-side`, `mean-side`, or `view:SV_108` (that view, else `max-side`).
+    pub fusion: String,
+    /// Images of a plant less than this many minutes apart belong to the same
+    /// imaging session.
+    pub session_gap_minutes: f64,
+    /// Window (sessions, odd) of the centred moving median that smooths living
+    /// leaves; 1 disables smoothing.
+    pub living_window: usize,
+}
+
+impl Default for TimelineConfig {
+    fn default() -> Self {
+        Self {
+            fusion: "max-side".into(),
+            session_gap_minutes: 120.0,
+            living_window: 3,
+        }
+    }
+}
+
+/// `[export]`: defaults for `phyllo export` (and the nightly timer).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ExportConfig {
+    /// Directory for `phyllo export` without `--out`: one `<what>.csv` per
+    /// table. Unset means `exports/` beside the database.
+    pub dir: Option<PathBuf>,
+}
+
+impl Config {
+    /// Reads and validates a configuration file.
+    pub fn load(path: &Path) -> anyhow::Result<Config> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("reading config file {}", path.display()))?;
+        Self::parse(&text).with_context(|| format!("config file {}", path.display()))
+    }
+
+    /// Parses and validates configuration text.
+    pub fn parse(text: &str) -> anyhow::Result<Config> {
+        let cfg: Config = toml::from_str(text)?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    fn validate(&self) -> anyhow::Result<()> {
+        if self.inference.workers == 0 {
+            bail!("inference.workers must be at least 1");
+        }
+        if self.inference.queue_capacity == 0 {
+            bail!("inference.queue_capacity must be at least 1");
+        }
+        if self.timeline.living_window.is_multiple_of(2) {
+            bail!("timeline.living_window must be odd (1 disables smoothing)");
+        }
+        if self.timeline.session_gap_minutes <= 0.0 {
+            bail!("timeline.session_gap_minutes must be positive");
+        }
+        crate::timeline::FusionRule::parse(&self.timeline.fusion)?;
+        crate::names::NamePatterns::from_config(&self.names)?;
+        Ok(())
+    }
+
+    /// Directory `phyllo export` writes to without `--out`.
+    pub fn export_dir(&self) -> PathBuf {
+        match &self.export.dir {
+            Some(d) => d.clone(),
+            None => self.database.parent().unwrap_or(Path::new(".")).join("exports"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn minimal_config_works() {
+        let cfg = Config::parse(
+            "drop_dir = \"/srv/phenotyping/drop\"\ndatabase = \"/var/lib/phyllo/phyllo.sqlite\"\n",
+        )
+        .unwrap();
+        assert_eq!(cfg.inference.workers, 2);
+        assert_eq!(cfg.timeline.fusion, "max-side");
+        assert_eq!(cfg.export_dir(), PathBuf::from("/var/lib/phyllo/exports"));
+    }
+
+    #[test]
+    fn unknown_keys_are_refused() {
+        let err = Config::parse("drop_dir = \"/d\"\ndatabase = \"/db\"\n[watch]\nrescan = 3\n").unwrap_err();
+        assert!(format!("{err:#}").contains("unknown field"), "{err:#}");
+    }
+
+    #[test]
+    fn bad_values_are_refused() {
+        for bad in [
+            "[timeline]\nfusion = \"biggest\"",
+            "[timeline]\nliving_window = 2",
+            "[inference]\nworkers = 0",
+            "[[names.patterns]]\nname = \"x\"\nregex = \"(?P<plant>.*)\"",
+        ] {
+            let text = format!("drop_dir = \"/d\"\ndatabase = \"/db\"\n{bad}\n");
+            assert!(Config::parse(&text).is_err(), "accepted: {bad}");
+        }
+    }
+
+    /// The example config parses and documents every key the code knows.
+    #[test]
+    fn example_config_documents_every_key() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../systemd/phyllo.toml.example");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let cfg = Config::parse(&text).unwrap();
+        assert_eq!(cfg.drop_dir, PathBuf::from("/srv/phenotyping/drop"));
+        let keys = [
+            "drop_dir",
+            "database",
+            "[watch]",
+            "extensions",
+            "ignore_hidden",
+            "stable_secs",
+            "settle_ms",
+            "poll_ms",
+            "rescan_secs",
+            "[names]",
+            "presets",
+            "[[names.patterns]]",
+            "regex",
+            "[inference]",
+            "model",
+            "ort_lib",
+            "workers",
+            "intra_threads",
+            "batch_size",
+            "queue_capacity",
+            "max_attempts",
+            "[timeline]",
+            "fusion",
+            "session_gap_minutes",
+            "living_window",
+            "[export]",
+            "dir",
+        ];
+        for k in keys {
+            assert!(text.contains(k), "example config does not mention {k}");
+        }
+    }
+}

@@ -1,0 +1,70 @@
+//! The boundary between the daemon and the model: anything that turns image
+//! bytes into a leaf count. The service holds an `Arc<dyn LeafCounter>`; in
+//! production it is `phyllo_inference::Counter`.
+
+use std::path::Path;
+
+use crate::store::CountRecord;
+
+/// Why an image could not be counted.
+#[derive(Debug, Clone)]
+pub struct CountError {
+    /// Message naming the file and the problem.
+    pub message: String,
+    /// True if trying again later may succeed (runtime trouble), false if the
+    /// data itself is bad (undecodable image) and retrying is pointless.
+    pub retry: bool,
+}
+
+/// Counts leaves. Blocking and CPU-heavy: call it from worker threads only.
+pub trait LeafCounter: Send + Sync {
+    /// Counts the leaves in an image whose bytes were already read. `name` is
+    /// for messages and to recognise the format.
+    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError>;
+    /// Identifies the model, stored with every observation.
+    fn model_id(&self) -> String;
+}
+
+/// Builds the production counter (ONNX Runtime) from `[inference]`.
+pub fn onnx_counter(cfg: &crate::config::InferenceConfig) -> anyhow::Result<std::sync::Arc<dyn LeafCounter>> {
+    let counter = phyllo_inference::Counter::new(phyllo_inference::CounterConfig {
+        model: cfg.model.clone(),
+        ort_lib: cfg.ort_lib.clone(),
+        intra_threads: cfg.intra_threads,
+        batch_size: cfg.batch_size,
+        ..phyllo_inference::CounterConfig::default()
+    })?;
+    Ok(std::sync::Arc::new(counter))
+}
+
+impl LeafCounter for phyllo_inference::Counter {
+    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError> {
+        use phyllo_inference::InferenceError as E;
+        match self.count_bytes(name, bytes) {
+            Ok(r) => Ok(CountRecord {
+                leaf_count: r.leaf_count,
+                instances: serde_json::to_value(&r.instances).unwrap_or_default(),
+                timing: serde_json::json!({
+                    "ms": r.ms,
+                    "tiles": r.tiles,
+                    "image_size": r.image_size,
+                    "region": r.region,
+                }),
+                ms_total: r.ms.total,
+                model_id: self.model_id(),
+            }),
+            Err(e) => {
+                // Bad image data will fail the same way every time; runtime trouble may pass.
+                let retry = !matches!(e, E::Image { .. });
+                Err(CountError {
+                    message: e.to_string(),
+                    retry,
+                })
+            }
+        }
+    }
+
+    fn model_id(&self) -> String {
+        phyllo_inference::Counter::model_id(self)
+    }
+}

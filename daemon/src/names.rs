@@ -1,0 +1,318 @@
+//! File names → plant id, time taken and view.
+//!
+//! The facility has used three layouts (DESIGN.md, "File naming"); each is a
+//! built-in preset. Sites add their own regular expressions in the config.
+//! Patterns are matched against the path *relative to the drop directory*
+//! (with `/` separators), so the snapshot layouts can take the plant and time
+//! from the folder name.
+
+use std::fmt;
+use std::path::Path;
+
+use anyhow::{bail, Context};
+use chrono::{NaiveDate, NaiveDateTime, NaiveTime};
+use regex::Regex;
+
+use crate::config::NamesConfig;
+
+/// Names of the built-in presets, in the order they are tried by default.
+pub const PRESET_NAMES: [&str; 3] = ["flat", "snapshot-dir", "snapshot-file"];
+
+const EXT: &str = r"(?i:png|jpe?g|tiff?)";
+const DATE: &str = r"(?P<date>\d{4}-\d{2}-\d{2})";
+const TIME: &str = r"(?P<time>\d{2}-\d{2}-\d{2}(?:\.\d+)?)";
+
+/// The regular expression of a built-in preset.
+pub fn preset_regex(name: &str) -> Option<String> {
+    Some(match name {
+        // <plant>_<YYYY-MM-DD>_<HH-MM-SS[.mmm]>_Vis_SV_<angle>[.Crp].<ext>
+        "flat" => format!(
+            r"(?:^|/)(?P<plant>[^/]+?)_{DATE}_{TIME}_Vis_(?P<kind>SV|TV)_(?P<angle>\d+)(?:\.Crp)?\.{EXT}$"
+        ),
+        // <date>_<experiment>_<plant>_<YYYY-MM-DD>_<HH-MM-SS>_<n>/Vis_SV_<angle>/0_0_0.png
+        "snapshot-dir" => format!(
+            r"(?:^|/)(?:[^/]*_)?(?P<plant>[^/_]+)_{DATE}_{TIME}_\d+/Vis_(?P<kind>SV|TV)_(?P<angle>\d+)/0_0_0\.{EXT}$"
+        ),
+        // <date>_<experiment>_<plant>_<YYYY-MM-DD>_<HH-MM-SS>_<n>/0_<angle>_0.png, top: top_0_90_0.png
+        "snapshot-file" => format!(
+            r"(?:^|/)(?:[^/]*_)?(?P<plant>[^/_]+)_{DATE}_{TIME}_\d+/(?:(?P<kind>top)_)?0_(?P<angle>\d+)_0\.{EXT}$"
+        ),
+        _ => return None,
+    })
+}
+
+/// Which way the camera looked.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum View {
+    /// Side view at this turntable angle (degrees).
+    Side(u16),
+    /// Top view (the facility labels it 90).
+    Top(u16),
+    /// Anything else, e.g. an imported manual count ("human"); fused like a side view.
+    Other(String),
+}
+
+impl View {
+    /// Parses the stored / imported form: `SV_108`, `Vis_SV_108`, `TV_90`,
+    /// `top`, `side_36`; anything else becomes [`View::Other`].
+    pub fn parse(s: &str) -> View {
+        let t = s.trim();
+        let t = t.strip_prefix("Vis_").unwrap_or(t);
+        let upper = t.to_ascii_uppercase();
+        let split = |rest: &str| rest.trim_start_matches(['_', '-', ' ']).parse::<u16>().ok();
+        for (prefix, side) in [("SV", true), ("SIDE", true), ("TV", false), ("TOP", false)] {
+            if let Some(rest) = upper.strip_prefix(prefix) {
+                if rest.is_empty() && !side {
+                    return View::Top(90);
+                }
+                if let Some(a) = split(rest) {
+                    return if side { View::Side(a) } else { View::Top(a) };
+                }
+            }
+        }
+        View::Other(t.to_string())
+    }
+
+    /// True for the top view.
+    pub fn is_top(&self) -> bool {
+        matches!(self, View::Top(_))
+    }
+}
+
+impl fmt::Display for View {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            View::Side(a) => write!(f, "SV_{a}"),
+            View::Top(a) => write!(f, "TV_{a}"),
+            View::Other(s) => f.write_str(s),
+        }
+    }
+}
+
+/// What a file name says about its image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParsedName {
+    /// Plant identifier (e.g. `402-127-N55-WW-1`).
+    pub plant: String,
+    /// When the image was taken (facility local time, as in the name).
+    pub taken_at: NaiveDateTime,
+    /// Camera view.
+    pub view: View,
+    /// Which pattern matched.
+    pub pattern: String,
+}
+
+/// A compiled, ordered list of file-name patterns.
+#[derive(Debug, Clone)]
+pub struct NamePatterns {
+    patterns: Vec<(String, Regex)>,
+}
+
+impl NamePatterns {
+    /// Compiles custom patterns (first) and presets (after), checking that each
+    /// has the required named groups.
+    pub fn from_config(cfg: &NamesConfig) -> anyhow::Result<NamePatterns> {
+        let mut patterns = Vec::new();
+        for p in &cfg.patterns {
+            let re = Regex::new(&p.regex).with_context(|| format!("names.patterns '{}'", p.name))?;
+            let groups: Vec<&str> = re.capture_names().flatten().collect();
+            for g in ["plant", "date", "time"] {
+                if !groups.contains(&g) {
+                    bail!(
+                        "names.patterns '{}': regex has no named group (?P<{g}>...)",
+                        p.name
+                    );
+                }
+            }
+            patterns.push((p.name.clone(), re));
+        }
+        for name in &cfg.presets {
+            let Some(src) = preset_regex(name) else {
+                bail!(
+                    "names.presets: unknown preset '{name}' (known: {})",
+                    PRESET_NAMES.join(", ")
+                );
+            };
+            patterns.push((name.clone(), Regex::new(&src).expect("preset regexes compile")));
+        }
+        if patterns.is_empty() {
+            bail!("names: no presets and no patterns: no file could ever match");
+        }
+        Ok(NamePatterns { patterns })
+    }
+
+    /// Names of the patterns, in the order tried.
+    pub fn names(&self) -> Vec<&str> {
+        self.patterns.iter().map(|(n, _)| n.as_str()).collect()
+    }
+
+    /// Parses a path relative to the drop directory. The error names the file
+    /// and every pattern tried.
+    pub fn parse(&self, rel: &Path) -> anyhow::Result<ParsedName> {
+        let s = rel.to_string_lossy().replace('\\', "/");
+        for (name, re) in &self.patterns {
+            let Some(c) = re.captures(&s) else { continue };
+            let get = |g: &str| c.name(g).map(|m| m.as_str());
+            let plant = get("plant").unwrap_or_default().to_string();
+            let taken_at = parse_datetime(get("date").unwrap_or_default(), get("time").unwrap_or_default())
+                .with_context(|| {
+                format!("file {s}: pattern '{name}' matched but the date/time is invalid")
+            })?;
+            if plant.is_empty() {
+                bail!("file {s}: pattern '{name}' matched an empty plant id");
+            }
+            let angle = get("angle").and_then(|a| a.parse::<u16>().ok());
+            let view = match get("kind").map(|k| k.to_ascii_lowercase()) {
+                Some(k) if k == "tv" || k == "top" => View::Top(angle.unwrap_or(90)),
+                _ => View::Side(angle.unwrap_or(0)),
+            };
+            return Ok(ParsedName {
+                plant,
+                taken_at,
+                view,
+                pattern: name.clone(),
+            });
+        }
+        let tried: Vec<String> = self
+            .patterns
+            .iter()
+            .map(|(n, re)| format!("{n} = /{}/", re.as_str()))
+            .collect();
+        bail!(
+            "file name {s} matches none of the patterns tried: {}",
+            tried.join("; ")
+        )
+    }
+}
+
+/// Parses `YYYY-MM-DD` plus `HH-MM-SS[.fff]` (also `HH:MM:SS`, `HHMMSS`).
+fn parse_datetime(date: &str, time: &str) -> anyhow::Result<NaiveDateTime> {
+    let d = NaiveDate::parse_from_str(date, "%Y-%m-%d").with_context(|| format!("date '{date}'"))?;
+    let (hms, frac) = time.split_once('.').unwrap_or((time, ""));
+    let digits: String = hms.chars().filter(|c| c.is_ascii_digit()).collect();
+    let norm = if frac.is_empty() {
+        digits
+    } else {
+        format!("{digits}.{frac}")
+    };
+    let t = NaiveTime::parse_from_str(&norm, "%H%M%S%.f").with_context(|| format!("time '{time}'"))?;
+    Ok(d.and_time(t))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::PatternConfig;
+
+    fn defaults() -> NamePatterns {
+        NamePatterns::from_config(&NamesConfig::default()).unwrap()
+    }
+
+    fn dt(s: &str) -> NaiveDateTime {
+        NaiveDateTime::parse_from_str(s, "%Y-%m-%dT%H:%M:%S%.f").unwrap()
+    }
+
+    #[test]
+    fn flat_layout_real_names() {
+        let p = defaults();
+        let n = p
+            .parse(Path::new(
+                "402-127-N55-WW-1_2019-05-10_09-18-07.937_Vis_SV_108.jpg",
+            ))
+            .unwrap();
+        assert_eq!(n.plant, "402-127-N55-WW-1");
+        assert_eq!(n.taken_at, dt("2019-05-10T09:18:07.937"));
+        assert_eq!(n.view, View::Side(108));
+        assert_eq!(n.pattern, "flat");
+        let n = p
+            .parse(Path::new("sub/dir/P1_2018-04-02_10-00-00_Vis_TV_90.png"))
+            .unwrap();
+        assert_eq!((n.plant.as_str(), n.view), ("P1", View::Top(90)));
+        let n = p
+            .parse(Path::new(
+                "402-100-N28-WW-1_2019-05-05_09-06-07.388_Vis_SV_252.Crp.jpg",
+            ))
+            .unwrap();
+        assert_eq!(n.view, View::Side(252));
+    }
+
+    #[test]
+    fn snapshot_layouts() {
+        let p = defaults();
+        let n = p
+            .parse(Path::new(
+                "2018-04-01_Sorghum_P042_2018-04-20_10-32-16_5512/Vis_SV_144/0_0_0.png",
+            ))
+            .unwrap();
+        assert_eq!(
+            (n.plant.as_str(), n.view.clone(), n.pattern.as_str()),
+            ("P042", View::Side(144), "snapshot-dir")
+        );
+        assert_eq!(n.taken_at, dt("2018-04-20T10:32:16"));
+        let n = p
+            .parse(Path::new(
+                "2018-04-01_Sorghum_P042_2018-04-20_10-32-16_5512/0_72_0.png",
+            ))
+            .unwrap();
+        assert_eq!(
+            (n.view.clone(), n.pattern.as_str()),
+            (View::Side(72), "snapshot-file")
+        );
+        let n = p
+            .parse(Path::new(
+                "x/2018-04-01_Sorghum_P042_2018-04-20_10-32-16_5512/top_0_90_0.png",
+            ))
+            .unwrap();
+        assert_eq!((n.plant.as_str(), n.view), ("P042", View::Top(90)));
+    }
+
+    #[test]
+    fn unmatched_name_names_file_and_patterns() {
+        let err = defaults()
+            .parse(Path::new("holiday/beach.png"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("holiday/beach.png"), "{err}");
+        for preset in PRESET_NAMES {
+            assert!(err.contains(preset), "{err}");
+        }
+    }
+
+    #[test]
+    fn invalid_date_is_an_error() {
+        let err = defaults()
+            .parse(Path::new("P1_2018-13-40_10-00-00_Vis_SV_0.png"))
+            .unwrap_err();
+        assert!(format!("{err:#}").contains("2018-13-40"), "{err:#}");
+    }
+
+    #[test]
+    fn custom_patterns_come_first() {
+        let cfg = NamesConfig {
+            presets: vec!["flat".into()],
+            patterns: vec![PatternConfig {
+                name: "site-b".into(),
+                regex: r"^(?P<plant>\w+)/(?P<date>\d{4}-\d{2}-\d{2})T(?P<time>\d{2}:\d{2}:\d{2})_(?P<kind>top|side)(?P<angle>\d*)\.png$".into(),
+            }],
+        };
+        let p = NamePatterns::from_config(&cfg).unwrap();
+        assert_eq!(p.names(), vec!["site-b", "flat"]);
+        let n = p.parse(Path::new("B7/2020-01-02T03:04:05_side36.png")).unwrap();
+        assert_eq!(
+            (n.plant.as_str(), n.view, n.taken_at),
+            ("B7", View::Side(36), dt("2020-01-02T03:04:05"))
+        );
+        let n = p.parse(Path::new("B7/2020-01-02T03:04:05_top.png")).unwrap();
+        assert_eq!(n.view, View::Top(90));
+    }
+
+    #[test]
+    fn view_round_trip() {
+        for s in ["SV_0", "SV_108", "TV_90", "human"] {
+            assert_eq!(View::parse(s).to_string(), s);
+        }
+        assert_eq!(View::parse("Vis_SV_36"), View::Side(36));
+        assert_eq!(View::parse("top"), View::Top(90));
+        assert_eq!(View::parse("side_72"), View::Side(72));
+    }
+}

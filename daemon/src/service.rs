@@ -1,0 +1,251 @@
+//! `phyllo serve`: wires sources, intake, workers and store together and runs
+//! until shutdown.
+//!
+//! Shutdown (SIGTERM/SIGINT, or the `shutdown` channel in tests): intake stops
+//! first (watch dropped, no more jobs queued); queued jobs not yet started are
+//! handed back (left unrecorded, so the next start's scan finds them); workers
+//! finish the image they hold, each in its own transaction; then the database
+//! connections close, which checkpoints the WAL.
+
+use std::collections::HashSet;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use anyhow::Context;
+use tokio::sync::{mpsc, watch};
+use tokio::time::MissedTickBehavior;
+
+use crate::config::Config;
+use crate::counting::LeafCounter;
+use crate::names::NamePatterns;
+use crate::source::intake::{Intake, ScanRequest};
+use crate::source::watch::Watch;
+use crate::source::{scan, Candidate, Filter};
+use crate::store::{now_utc, Store};
+use crate::systemd;
+use crate::worker::{spawn_workers, Stats, WorkerCtx};
+
+/// How often the service writes its self-report for `phyllo status`.
+const STATUS_EVERY: Duration = Duration::from_secs(2);
+
+/// Runs the service until `shutdown` becomes true. Must be called inside a
+/// multi-threaded tokio runtime.
+pub async fn run(
+    config: Config,
+    counter: Arc<dyn LeafCounter>,
+    mut shutdown: watch::Receiver<bool>,
+) -> anyhow::Result<()> {
+    let names = NamePatterns::from_config(&config.names)?;
+    let mut status_store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
+    let model_id = counter.model_id();
+    let stats = Arc::new(Stats::default());
+    let in_flight = Arc::new(Mutex::new(HashSet::new()));
+    let stop_workers = Arc::new(AtomicBool::new(false));
+    let (job_tx, job_rx) = mpsc::channel(config.inference.queue_capacity);
+    let ctx = Arc::new(WorkerCtx {
+        config: config.clone(),
+        names,
+        counter,
+        stats: stats.clone(),
+        in_flight: in_flight.clone(),
+        shutdown: stop_workers.clone(),
+    });
+    let workers = spawn_workers(config.inference.workers, job_rx, ctx)?;
+
+    // Sources feed candidates into one channel; the intake is its only reader.
+    let (cand_tx, mut cand_rx) = mpsc::channel::<Candidate>(4096);
+    let filter = Filter::new(&config.drop_dir, &config.watch);
+    let mut watcher = start_watch(&filter, &cand_tx);
+    let intake_store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
+    let mut intake = Intake::new(
+        filter.clone(),
+        &config.watch,
+        intake_store,
+        job_tx,
+        in_flight,
+        stats.clone(),
+    );
+    let scanning = Arc::new(AtomicBool::new(false));
+    spawn_scan(&config, &filter, filter.root().to_path_buf(), &cand_tx, &scanning);
+
+    let started = now_utc();
+    status_store.set_service(&[
+        ("state", "running".into()),
+        ("pid", std::process::id().to_string()),
+        ("started_at", started.clone()),
+        ("model", model_id.clone()),
+        ("drop_dir", config.drop_dir.display().to_string()),
+        ("workers", config.inference.workers.to_string()),
+    ])?;
+    systemd::ready(&format!("watching {} with {model_id}", config.drop_dir.display()));
+    tracing::info!(
+        "phyllo serve: watching {} → {} (model {model_id}, {} workers)",
+        config.drop_dir.display(),
+        config.database.display(),
+        config.inference.workers
+    );
+
+    let status_task = tokio::spawn(report_status(status_store, stats.clone(), shutdown.clone()));
+    let mut tick = tokio::time::interval(Duration::from_millis(config.watch.poll_ms.max(10)));
+    tick.set_missed_tick_behavior(MissedTickBehavior::Delay);
+    let rescan_every = Duration::from_secs(config.watch.rescan_secs.max(1));
+    let mut rescan = tokio::time::interval_at(tokio::time::Instant::now() + rescan_every, rescan_every);
+    rescan.set_missed_tick_behavior(MissedTickBehavior::Delay);
+    // A drop directory that is missing or was replaced is re-watched this often.
+    let mut rewatch = tokio::time::interval(Duration::from_secs(5));
+
+    let mut intake_shutdown = shutdown.clone();
+    loop {
+        tokio::select! {
+            _ = shutdown.wait_for(|s| *s) => break,
+            Some(c) = cand_rx.recv() => {
+                match intake.note(c) {
+                    Some(ScanRequest::Dir(d)) => spawn_scan(&config, &filter, d, &cand_tx, &scanning),
+                    Some(ScanRequest::All) => spawn_scan(&config, &filter, filter.root().to_path_buf(), &cand_tx, &scanning),
+                    None => {}
+                }
+            }
+            _ = tick.tick() => intake.tick(&mut intake_shutdown).await,
+            _ = rescan.tick(), if config.watch.rescan_secs > 0 => {
+                spawn_scan(&config, &filter, filter.root().to_path_buf(), &cand_tx, &scanning);
+            }
+            _ = rewatch.tick() => {
+                if watcher.as_ref().is_none_or(|w| w.is_stale()) {
+                    drop(watcher.take());
+                    watcher = start_watch(&filter, &cand_tx);
+                    if watcher.is_some() {
+                        tracing::info!("drop directory {} (re)appeared, watching and scanning it", filter.root().display());
+                        spawn_scan(&config, &filter, filter.root().to_path_buf(), &cand_tx, &scanning);
+                    }
+                }
+            }
+        }
+    }
+
+    systemd::stopping("stopping: finishing in-flight images");
+    tracing::info!(
+        "shutting down: {} pending, finishing in-flight images",
+        intake.pending()
+    );
+    drop(watcher);
+    stop_workers.store(true, Ordering::SeqCst);
+    // Dropping the intake drops the queue's sender: workers drain (handing back) and exit.
+    drop(intake);
+    tokio::task::spawn_blocking(move || {
+        for w in workers {
+            let _ = w.join();
+        }
+    })
+    .await
+    .context("joining workers")?;
+    let mut store = status_task.await.context("status task")?;
+    store.set_service(&[("state", "stopped".into()), ("stopped_at", now_utc())])?;
+    drop(store);
+    tracing::info!(
+        "stopped: {} counted, {} failed since start",
+        stats.counted.load(Ordering::Relaxed),
+        stats.failed.load(Ordering::Relaxed)
+    );
+    Ok(())
+}
+
+fn start_watch(filter: &Filter, tx: &mpsc::Sender<Candidate>) -> Option<Watch> {
+    match Watch::start(filter.clone(), tx.clone()) {
+        Ok(w) => Some(w),
+        Err(e) => {
+            tracing::warn!("{e:#}; retrying");
+            None
+        }
+    }
+}
+
+/// Scans `dir` on a blocking thread, sending files not yet done as candidates.
+/// At most one scan runs at a time; a request during a scan is dropped, since
+/// the running scan or the next periodic one covers it.
+fn spawn_scan(
+    config: &Config,
+    filter: &Filter,
+    dir: PathBuf,
+    tx: &mpsc::Sender<Candidate>,
+    scanning: &Arc<AtomicBool>,
+) {
+    let whole = dir == filter.root();
+    if whole && scanning.swap(true, Ordering::SeqCst) {
+        return;
+    }
+    let (config, filter, tx, scanning) = (config.clone(), filter.clone(), tx.clone(), scanning.clone());
+    tokio::task::spawn_blocking(move || {
+        let store = Store::open(&config.database, &config.timeline, config.inference.max_attempts);
+        let files = scan::scan(&filter, &dir);
+        let mut sent = 0;
+        for path in &files {
+            let known = match (&store, filter.rel(path), std::fs::metadata(path)) {
+                (Ok(s), Some(rel), Ok(meta)) => s
+                    .is_known(&rel, meta.len(), &crate::worker::mtime_string(&meta))
+                    .unwrap_or(false),
+                _ => false,
+            };
+            if !known {
+                sent += 1;
+                if tx.blocking_send(Candidate::Scanned(path.clone())).is_err() {
+                    break;
+                }
+            }
+        }
+        tracing::debug!("scan of {}: {} files, {sent} new", dir.display(), files.len());
+        if whole {
+            scanning.store(false, Ordering::SeqCst);
+        }
+    });
+}
+
+/// Writes the self-report for `phyllo status`, the systemd status line and
+/// the watchdog ping, until shutdown. Returns the store for the final report.
+async fn report_status(mut store: Store, stats: Arc<Stats>, mut shutdown: watch::Receiver<bool>) -> Store {
+    let watchdog = systemd::watchdog_interval();
+    let every = watchdog.map_or(STATUS_EVERY, |w| w.min(STATUS_EVERY));
+    let mut tick = tokio::time::interval(every);
+    loop {
+        tokio::select! {
+            _ = shutdown.wait_for(|s| *s) => return store,
+            _ = tick.tick() => {}
+        }
+        let queued = stats.queued.load(Ordering::Relaxed);
+        let busy = stats.busy.load(Ordering::Relaxed);
+        let counted = stats.counted.load(Ordering::Relaxed);
+        let failed = stats.failed.load(Ordering::Relaxed);
+        let last = stats.last.lock().expect("last lock").clone().unwrap_or_default();
+        let kv = [
+            ("heartbeat", now_utc()),
+            ("queued", queued.to_string()),
+            ("busy", busy.to_string()),
+            ("counted_since_start", counted.to_string()),
+            ("failed_since_start", failed.to_string()),
+            (
+                "internal_errors",
+                stats.internal_errors.load(Ordering::Relaxed).to_string(),
+            ),
+            ("last_image", last.clone()),
+        ];
+        // The write is short but may wait for a worker's transaction: keep it off the runtime.
+        store = match tokio::task::spawn_blocking(move || {
+            if let Err(e) = store.set_service(&kv) {
+                tracing::warn!("writing service status: {e:#}");
+            }
+            store
+        })
+        .await
+        {
+            Ok(s) => s,
+            Err(e) => panic!("status writer panicked: {e}"),
+        };
+        systemd::status(&format!(
+            "queue {queued}, busy {busy}, counted {counted}, failed {failed}; last {last}"
+        ));
+        if watchdog.is_some() {
+            systemd::watchdog();
+        }
+    }
+}

@@ -1,0 +1,8 @@
+//! Sinks: what leaves the database for people and other programs.
+//!
+//! [`export`] writes CSV atomically, [`plot`] draws a plant's timeline,
+//! [`tail`] follows the feed from another process.
+
+pub mod export;
+pub mod plot;
+pub mod tail;

@@ -1,0 +1,131 @@
+//! `phyllo timeline --plot`: a plant's timeline as a PNG.
+//!
+//! Drawn with plotters' bitmap backend. Text uses DejaVu Sans, embedded in the
+//! binary (crate `dejavu`) and registered with plotters' ab_glyph backend, so
+//! rendering needs no system fonts and works offline and in a hardened unit.
+
+use std::path::Path;
+use std::sync::Once;
+
+use anyhow::{anyhow, Context};
+use plotters::prelude::*;
+use plotters::style::FontStyle;
+
+use crate::store::{parse_iso, PlantTimeline};
+
+static FONT: Once = Once::new();
+
+fn register_font() {
+    FONT.call_once(|| {
+        if plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular()).is_err() {
+            tracing::warn!("could not register the embedded font; the plot will have no text");
+        }
+    });
+}
+
+/// Draws the timeline: per-view counts (grey), fused counts (blue), leaves
+/// emerged (red steps), living leaves (green), emergence events (red ticks).
+/// The x axis is days since the first session.
+pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
+    register_font();
+    let first = t
+        .sessions
+        .first()
+        .ok_or_else(|| anyhow!("plant {} has no sessions to plot", t.plant))?;
+    let t0 = parse_iso(&first.start)?;
+    let day = |s: &str| -> anyhow::Result<f64> {
+        Ok((parse_iso(s)? - t0).num_milliseconds() as f64 / 86_400_000.0)
+    };
+    let mut xs = Vec::new();
+    let mut ymax: f64 = 1.0;
+    for s in &t.sessions {
+        xs.push(day(&s.start)?);
+        ymax = ymax.max(
+            s.views
+                .values()
+                .cloned()
+                .fold(s.fused.max(s.leaves_emerged), f64::max),
+        );
+    }
+    let xmax = xs.last().cloned().unwrap_or(0.0).max(1.0);
+    let root = BitMapBackend::new(out, (1000, 600)).into_drawing_area();
+    let err = |e: DrawingAreaErrorKind<_>| anyhow!("drawing {}: {e:?}", out.display());
+    root.fill(&WHITE).map_err(err)?;
+    let ph = t
+        .phyllochron_days
+        .map_or("n/a".into(), |p| format!("{p:.2} days/leaf"));
+    let mut chart = ChartBuilder::on(&root)
+        .caption(format!("{} — phyllochron {ph}", t.plant), ("sans-serif", 24))
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(-0.5..xmax + 0.5, 0.0..(ymax + 1.5).ceil())
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc(format!("days since {}", &first.start[..10]))
+        .y_desc("leaves")
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(err)?;
+    let views: Vec<(f64, f64)> = t
+        .sessions
+        .iter()
+        .zip(&xs)
+        .flat_map(|(s, &x)| s.views.values().map(move |&c| (x, c)))
+        .collect();
+    chart
+        .draw_series(
+            views
+                .iter()
+                .map(|&p| Circle::new(p, 3, RGBColor(150, 150, 150).filled())),
+        )
+        .map_err(err)?
+        .label("per view")
+        .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(150, 150, 150).filled()));
+    let fused: Vec<(f64, f64)> = t.sessions.iter().zip(&xs).map(|(s, &x)| (x, s.fused)).collect();
+    chart
+        .draw_series(fused.iter().map(|&p| Circle::new(p, 5, BLUE.filled())))
+        .map_err(err)?
+        .label("fused")
+        .legend(|(x, y)| Circle::new((x + 10, y), 5, BLUE.filled()));
+    let living: Vec<(f64, f64)> = t.sessions.iter().zip(&xs).map(|(s, &x)| (x, s.living)).collect();
+    chart
+        .draw_series(LineSeries::new(living, GREEN.stroke_width(2)))
+        .map_err(err)?
+        .label("living (smoothed)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], GREEN.stroke_width(2)));
+    let mut steps = Vec::new();
+    for (i, s) in t.sessions.iter().enumerate() {
+        if i > 0 {
+            steps.push((xs[i], t.sessions[i - 1].leaves_emerged));
+        }
+        steps.push((xs[i], s.leaves_emerged));
+    }
+    chart
+        .draw_series(LineSeries::new(steps, RED.stroke_width(3)))
+        .map_err(err)?
+        .label("leaves emerged (isotonic fit)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
+    for (leaf, at, _) in &t.events {
+        let x = day(at)?;
+        let y = *leaf as f64;
+        chart
+            .draw_series(std::iter::once(PathElement::new(
+                vec![(x, y - 0.4), (x, y + 0.4)],
+                RED.stroke_width(2),
+            )))
+            .map_err(err)?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(err)?;
+    root.present()
+        .with_context(|| format!("writing {}", out.display()))?;
+    Ok(())
+}

@@ -1,0 +1,117 @@
+//! `phyllo tail`: follows the database's feed from another process.
+//!
+//! The service appends to the `feed` table in the same transaction as each
+//! image, so polling it (a cheap indexed range read in WAL mode, which never
+//! blocks the writer) sees exactly what has committed, in order, and nothing
+//! twice.
+
+use std::io::Write;
+use std::path::Path;
+use std::time::Duration;
+
+use crate::store::{FeedRow, Store};
+
+/// How often the feed is polled.
+pub const POLL: Duration = Duration::from_millis(250);
+
+/// Formats one feed row for people.
+pub fn format_row(r: &FeedRow) -> String {
+    let plant = r.plant.as_deref().unwrap_or("-");
+    let new = if r.new_leaves.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "  new leaves {}",
+            r.new_leaves
+                .iter()
+                .map(|l| l.to_string())
+                .collect::<Vec<_>>()
+                .join(",")
+        )
+    };
+    let num = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
+    match r.kind.as_str() {
+        "count" => format!(
+            "{}  {plant}  {}  count {}  fused {}  emerged {}{new}",
+            r.taken_at.as_deref().unwrap_or("-"),
+            r.view.as_deref().unwrap_or("-"),
+            r.leaf_count.map_or("-".into(), |c| c.to_string()),
+            num(r.fused),
+            num(r.leaves_emerged),
+        ),
+        "event" => format!(
+            "{}  {plant}  EVENT  {}",
+            r.taken_at.as_deref().unwrap_or("-"),
+            r.message.as_deref().unwrap_or("")
+        ),
+        "import" => format!(
+            "{}  {plant}  IMPORT  fused {}  emerged {}{new}",
+            r.at,
+            num(r.fused),
+            num(r.leaves_emerged)
+        ),
+        "failed" => format!("{}  FAILED  {}", r.at, r.message.as_deref().unwrap_or("")),
+        _ => format!(
+            "{}  {}  {}",
+            r.at,
+            r.kind.to_uppercase(),
+            r.message.as_deref().unwrap_or("")
+        ),
+    }
+}
+
+/// Prints feed rows as they land until `stop()` is true. With `from_start`
+/// the whole feed is replayed first; otherwise only new rows are shown.
+pub fn follow(
+    db: &Path,
+    plant: Option<&str>,
+    json: bool,
+    from_start: bool,
+    out: &mut dyn Write,
+    stop: &dyn Fn() -> bool,
+) -> anyhow::Result<()> {
+    // Wait for the service to create (and migrate) the database, so tail can start
+    // first. Everything in a database that did not exist yet is new to us.
+    let existed = db.exists();
+    let mut complained = false;
+    let store = loop {
+        match Store::open_read_only(db) {
+            Ok(s) => break s,
+            Err(e) => {
+                if stop() {
+                    return Err(e);
+                }
+                if !complained {
+                    eprintln!("phyllo tail: waiting for the database: {e:#}");
+                    complained = true;
+                }
+                std::thread::sleep(POLL);
+            }
+        }
+    };
+    let mut seq = if from_start || !existed {
+        0
+    } else {
+        store.feed_head()?
+    };
+    loop {
+        // Read once more after a stop request, so nothing committed before it is missed.
+        let stopping = stop();
+        let rows = store.feed_after(seq, plant, 1000)?;
+        for r in &rows {
+            if json {
+                writeln!(out, "{}", serde_json::to_string(r)?)?;
+            } else {
+                writeln!(out, "{}", format_row(r))?;
+            }
+            seq = r.seq;
+        }
+        out.flush()?;
+        if stopping && rows.is_empty() {
+            return Ok(());
+        }
+        if rows.is_empty() {
+            std::thread::sleep(POLL);
+        }
+    }
+}

@@ -1,0 +1,118 @@
+//! Sources: where candidate files come from.
+//!
+//! [`watch`] turns inotify events into [`Candidate`]s, [`scan`] walks the tree
+//! at start and periodically (the safety net for lost events), and [`intake`]
+//! decides when a file is complete and hands it to the bounded work queue.
+
+pub mod intake;
+pub mod scan;
+pub mod watch;
+
+use std::path::{Path, PathBuf};
+
+use crate::config::WatchConfig;
+
+/// Why a path was brought to the intake's attention.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Candidate {
+    /// A writer closed the file after writing: complete unless it reopens.
+    Closed(PathBuf),
+    /// The file was renamed or moved into the tree: complete.
+    Renamed(PathBuf),
+    /// Created or modified: wait until its size and mtime are stable.
+    Changed(PathBuf),
+    /// Found by a scan and not yet in the database.
+    Scanned(PathBuf),
+    /// Removed or renamed away: forget it.
+    Removed(PathBuf),
+    /// A directory appeared (created or moved in): scan it, since files may
+    /// have landed in it before the watch on it was in place.
+    ScanDir(PathBuf),
+    /// Events were lost (queue overflow, watcher error): scan everything.
+    RescanAll,
+}
+
+/// Which files are images phyllo should look at.
+#[derive(Debug, Clone)]
+pub struct Filter {
+    root: PathBuf,
+    extensions: Vec<String>,
+    ignore_hidden: bool,
+}
+
+impl Filter {
+    /// Builds the filter for the drop directory `root`.
+    pub fn new(root: &Path, cfg: &WatchConfig) -> Filter {
+        Filter {
+            root: root.to_path_buf(),
+            extensions: cfg
+                .extensions
+                .iter()
+                .map(|e| e.trim_start_matches('.').to_ascii_lowercase())
+                .collect(),
+            ignore_hidden: cfg.ignore_hidden,
+        }
+    }
+
+    /// The drop directory.
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// Path relative to the drop directory with `/` separators, if inside it.
+    pub fn rel(&self, path: &Path) -> Option<String> {
+        let rel = path.strip_prefix(&self.root).ok()?;
+        let parts: Vec<String> = rel
+            .components()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned())
+            .collect();
+        if parts.is_empty() {
+            return None;
+        }
+        Some(parts.join("/"))
+    }
+
+    /// True if a directory below the root should be descended into.
+    pub fn wants_dir(&self, path: &Path) -> bool {
+        !(self.ignore_hidden && self.hidden(path))
+    }
+
+    /// True if the path looks like an image phyllo should count.
+    pub fn wants_file(&self, path: &Path) -> bool {
+        if self.ignore_hidden && self.hidden(path) {
+            return false;
+        }
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        self.extensions.contains(&ext)
+    }
+
+    fn hidden(&self, path: &Path) -> bool {
+        let rel = path.strip_prefix(&self.root).unwrap_or(path);
+        rel.components()
+            .any(|c| c.as_os_str().to_string_lossy().starts_with('.'))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn filter_images_and_hidden() {
+        let f = Filter::new(Path::new("/drop"), &WatchConfig::default());
+        assert!(f.wants_file(Path::new("/drop/a/P_2018-01-01_00-00-00_Vis_SV_0.PNG")));
+        assert!(f.wants_file(Path::new("/drop/x.Crp.jpg")));
+        assert!(!f.wants_file(Path::new("/drop/.x.png")));
+        assert!(!f.wants_file(Path::new("/drop/.tmp/x.png")));
+        assert!(!f.wants_file(Path::new("/drop/x.png.part")));
+        assert!(!f.wants_file(Path::new("/drop/notes.txt")));
+        assert_eq!(f.rel(Path::new("/drop/a/b.png")).as_deref(), Some("a/b.png"));
+        assert_eq!(f.rel(Path::new("/elsewhere/b.png")), None);
+        // A hidden parent of the root itself does not hide files.
+        let f = Filter::new(Path::new("/home/.cache/drop"), &WatchConfig::default());
+        assert!(f.wants_file(Path::new("/home/.cache/drop/b.png")));
+    }
+}

@@ -1,0 +1,259 @@
+//! Read queries used by the operator commands (tail, status, timeline).
+
+use std::collections::BTreeMap;
+
+use anyhow::Context;
+use rusqlite::{params, OptionalExtension};
+use serde::Serialize;
+
+use super::Store;
+
+/// One entry of the feed `phyllo tail` follows.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct FeedRow {
+    /// Position in the feed.
+    pub seq: i64,
+    /// When it was written (UTC).
+    pub at: String,
+    /// `count`, `import`, `event`, `duplicate` or `failed`.
+    pub kind: String,
+    /// Plant id.
+    pub plant: Option<String>,
+    /// Image time (count) or estimated emergence time (event).
+    pub taken_at: Option<String>,
+    /// View of the image.
+    pub view: Option<String>,
+    /// Leaves counted in the image.
+    pub leaf_count: Option<i64>,
+    /// Fused count of the image's session.
+    pub fused: Option<f64>,
+    /// Leaves emerged at that session (fit), or the leaf number of an event.
+    pub leaves_emerged: Option<f64>,
+    /// Leaf numbers newly emerged.
+    pub new_leaves: Vec<u32>,
+    /// Image path relative to the drop directory.
+    pub path: Option<String>,
+    /// Human-readable detail (errors name the file and problem).
+    pub message: Option<String>,
+}
+
+/// Images per state.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct ImageCounts {
+    /// Counted.
+    pub counted: i64,
+    /// Same content as a counted image.
+    pub duplicate: i64,
+    /// Failed.
+    pub failed: i64,
+    /// Imported observations.
+    pub imported: i64,
+    /// Plants.
+    pub plants: i64,
+}
+
+/// The most recently recorded image.
+#[derive(Debug, Clone, Serialize)]
+pub struct LastImage {
+    /// Path relative to the drop directory.
+    pub path: String,
+    /// `counted`, `duplicate` or `failed`.
+    pub state: String,
+    /// When it was recorded (UTC).
+    pub at: String,
+    /// Why it failed, if it did.
+    pub error: Option<String>,
+}
+
+/// Everything `phyllo timeline` shows for one plant.
+#[derive(Debug, Clone, Serialize)]
+pub struct PlantTimeline {
+    /// Plant id.
+    pub plant: String,
+    /// Days per leaf.
+    pub phyllochron_days: Option<f64>,
+    /// Sessions: start, per-view counts, fused, leaves emerged, living.
+    pub sessions: Vec<SessionRow>,
+    /// Emergence events: leaf, estimated time, first seen.
+    pub events: Vec<(u32, String, String)>,
+}
+
+/// One session row of a plant timeline.
+#[derive(Debug, Clone, Serialize)]
+pub struct SessionRow {
+    /// First image of the session.
+    pub start: String,
+    /// Count per view.
+    pub views: BTreeMap<String, f64>,
+    /// Fused count.
+    pub fused: f64,
+    /// Leaves emerged (non-decreasing fit).
+    pub leaves_emerged: f64,
+    /// Living leaves, smoothed.
+    pub living: f64,
+}
+
+fn feed_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<FeedRow> {
+    let new_leaves: Option<String> = r.get(9)?;
+    Ok(FeedRow {
+        seq: r.get(0)?,
+        at: r.get(1)?,
+        kind: r.get(2)?,
+        plant: r.get(3)?,
+        taken_at: r.get(4)?,
+        view: r.get(5)?,
+        leaf_count: r.get(6)?,
+        fused: r.get(7)?,
+        leaves_emerged: r.get(8)?,
+        new_leaves: new_leaves
+            .and_then(|s| serde_json::from_str(&s).ok())
+            .unwrap_or_default(),
+        path: r.get(10)?,
+        message: r.get(11)?,
+    })
+}
+
+impl Store {
+    /// Feed entries after `seq`, oldest first, optionally for one plant.
+    pub fn feed_after(&self, seq: i64, plant: Option<&str>, limit: usize) -> anyhow::Result<Vec<FeedRow>> {
+        let mut stmt = self.conn.prepare_cached(
+            "SELECT seq, at, kind, plant, taken_at, view, leaf_count, fused, leaves_emerged, new_leaves, path, message
+             FROM feed WHERE seq > ?1 AND (?2 IS NULL OR plant = ?2) ORDER BY seq LIMIT ?3",
+        )?;
+        let rows = stmt
+            .query_map(params![seq, plant, limit as i64], feed_row)?
+            .collect::<Result<_, _>>()?;
+        Ok(rows)
+    }
+
+    /// The newest feed position (0 when empty).
+    pub fn feed_head(&self) -> anyhow::Result<i64> {
+        Ok(self
+            .conn
+            .query_row("SELECT COALESCE(MAX(seq), 0) FROM feed", [], |r| r.get(0))?)
+    }
+
+    /// Images per state, imported observations and plants.
+    pub fn image_counts(&self) -> anyhow::Result<ImageCounts> {
+        let mut c = ImageCounts::default();
+        let mut stmt = self
+            .conn
+            .prepare("SELECT state, COUNT(*) FROM images GROUP BY state")?;
+        for row in stmt.query_map([], |r| Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)?)))? {
+            let (state, n) = row?;
+            match state.as_str() {
+                "counted" => c.counted = n,
+                "duplicate" => c.duplicate = n,
+                "failed" => c.failed = n,
+                _ => {}
+            }
+        }
+        c.imported = self.conn.query_row(
+            "SELECT COUNT(*) FROM observations WHERE image_id IS NULL",
+            [],
+            |r| r.get(0),
+        )?;
+        c.plants = self
+            .conn
+            .query_row("SELECT COUNT(*) FROM plants", [], |r| r.get(0))?;
+        Ok(c)
+    }
+
+    /// The most recently recorded image.
+    pub fn last_image(&self) -> anyhow::Result<Option<LastImage>> {
+        Ok(self
+            .conn
+            .query_row(
+                "SELECT path, state, updated_at, error FROM images ORDER BY updated_at DESC, id DESC LIMIT 1",
+                [],
+                |r| {
+                    Ok(LastImage {
+                        path: r.get(0)?,
+                        state: r.get(1)?,
+                        at: r.get(2)?,
+                        error: r.get(3)?,
+                    })
+                },
+            )
+            .optional()?)
+    }
+
+    /// The most recent failures: (path, error).
+    pub fn recent_failures(&self, n: usize) -> anyhow::Result<Vec<(String, String)>> {
+        let mut stmt = self.conn.prepare(
+            "SELECT path, COALESCE(error, '') FROM images WHERE state = 'failed' ORDER BY updated_at DESC LIMIT ?1",
+        )?;
+        let rows = stmt
+            .query_map([n as i64], |r| Ok((r.get(0)?, r.get(1)?)))?
+            .collect::<Result<_, _>>()?;
+        Ok(rows)
+    }
+
+    /// The service's self-report (key → value).
+    pub fn service(&self) -> anyhow::Result<BTreeMap<String, String>> {
+        let mut stmt = self.conn.prepare("SELECT key, value FROM service")?;
+        let rows = stmt
+            .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))?
+            .collect::<Result<_, _>>()?;
+        Ok(rows)
+    }
+
+    /// All plant ids, sorted.
+    pub fn plants(&self) -> anyhow::Result<Vec<String>> {
+        let mut stmt = self.conn.prepare("SELECT name FROM plants ORDER BY name")?;
+        let rows = stmt.query_map([], |r| r.get(0))?.collect::<Result<_, _>>()?;
+        Ok(rows)
+    }
+
+    /// One plant's timeline as stored.
+    pub fn plant_timeline(&self, plant: &str) -> anyhow::Result<Option<PlantTimeline>> {
+        let Some((id, phyllochron_days)) = self
+            .conn
+            .query_row(
+                "SELECT id, phyllochron_days FROM plants WHERE name = ?1",
+                [plant],
+                |r| Ok((r.get::<_, i64>(0)?, r.get(1)?)),
+            )
+            .optional()?
+        else {
+            return Ok(None);
+        };
+        let mut stmt = self.conn.prepare(
+            "SELECT start, views, fused, leaves_emerged, living FROM sessions WHERE plant_id = ?1 ORDER BY start",
+        )?;
+        let sessions = stmt
+            .query_map([id], |r| {
+                Ok((
+                    r.get::<_, String>(0)?,
+                    r.get::<_, String>(1)?,
+                    r.get(2)?,
+                    r.get(3)?,
+                    r.get(4)?,
+                ))
+            })?
+            .map(|row| {
+                let (start, views, fused, leaves_emerged, living) = row?;
+                let views = serde_json::from_str(&views).context("sessions.views")?;
+                Ok(SessionRow {
+                    start,
+                    views,
+                    fused,
+                    leaves_emerged,
+                    living,
+                })
+            })
+            .collect::<anyhow::Result<_>>()?;
+        let mut stmt = self
+            .conn
+            .prepare("SELECT leaf, emerged_at, seen_at FROM events WHERE plant_id = ?1 ORDER BY leaf")?;
+        let events = stmt
+            .query_map([id], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))?
+            .collect::<Result<_, _>>()?;
+        Ok(Some(PlantTimeline {
+            plant: plant.to_string(),
+            phyllochron_days,
+            sessions,
+            events,
+        }))
+    }
+}

@@ -1,0 +1,349 @@
+//! Store tests on real SQLite files.
+
+use std::path::PathBuf;
+
+use chrono::{Duration, NaiveDate};
+
+use super::*;
+use crate::config::TimelineConfig;
+use crate::worker::sha256_hex;
+
+fn open(dir: &tempfile::TempDir) -> Store {
+    Store::open(&db(dir), &TimelineConfig::default(), 3).unwrap()
+}
+
+fn db(dir: &tempfile::TempDir) -> PathBuf {
+    dir.path().join("state/phyllo.sqlite")
+}
+
+fn day(i: i64) -> NaiveDateTime {
+    NaiveDate::from_ymd_opt(2018, 4, 20)
+        .unwrap()
+        .and_hms_opt(10, 0, 0)
+        .unwrap()
+        + Duration::days(i)
+}
+
+fn name(plant: &str, t: NaiveDateTime, view: View) -> ParsedName {
+    ParsedName {
+        plant: plant.into(),
+        taken_at: t,
+        view,
+        pattern: "flat".into(),
+    }
+}
+
+fn facts(rel: &str, content: &str) -> FileFacts {
+    FileFacts {
+        rel: rel.into(),
+        size: content.len() as u64,
+        mtime: Some(format!("mtime-of-{content}")),
+        sha256: sha256_hex(content.as_bytes()),
+    }
+}
+
+fn count(n: u32) -> CountRecord {
+    CountRecord {
+        leaf_count: n,
+        instances: serde_json::json!([{"id": 1, "class": 1, "area": 100}]),
+        timing: serde_json::json!({"total": 12.5}),
+        ms_total: 12.5,
+        model_id: "test-model".into(),
+    }
+}
+
+fn n_obs(s: &Store) -> i64 {
+    s.conn()
+        .query_row("SELECT COUNT(*) FROM observations", [], |r| r.get(0))
+        .unwrap()
+}
+
+#[test]
+fn counted_image_lands_with_timeline_and_feed() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    let f = facts("P1_a.png", "a");
+    assert_eq!(s.precheck(&f).unwrap(), Precheck::Process);
+    let r = s
+        .record(
+            &f,
+            Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8)),
+        )
+        .unwrap();
+    assert_eq!(
+        r,
+        Recorded::Counted {
+            fused: 8.0,
+            emerged: 8.0,
+            new_leaves: vec![]
+        }
+    );
+    let f2 = facts("P1_b.png", "b");
+    let r = s
+        .record(
+            &f2,
+            Outcome::Counted(&name("P1", day(1), View::Side(0)), &count(10)),
+        )
+        .unwrap();
+    assert_eq!(
+        r,
+        Recorded::Counted {
+            fused: 10.0,
+            emerged: 10.0,
+            new_leaves: vec![9, 10]
+        }
+    );
+    let t = s.plant_timeline("P1").unwrap().unwrap();
+    assert_eq!(t.sessions.len(), 2);
+    assert_eq!(t.events.len(), 2);
+    let feed = s.feed_after(0, None, 100).unwrap();
+    let kinds: Vec<&str> = feed.iter().map(|r| r.kind.as_str()).collect();
+    assert_eq!(kinds, vec!["count", "event", "event", "count"]);
+    assert_eq!(feed[3].new_leaves, vec![9, 10]);
+    assert_eq!(s.feed_after(0, Some("P2"), 100).unwrap().len(), 0);
+    assert_eq!(s.image_counts().unwrap().counted, 2);
+}
+
+#[test]
+fn same_content_is_never_counted_twice() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    let f = facts("P1_a.png", "a");
+    s.record(
+        &f,
+        Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8)),
+    )
+    .unwrap();
+    // Same path, same content (touched, or rescanned after a restart).
+    assert!(matches!(s.precheck(&f).unwrap(), Precheck::Skip(_)));
+    assert!(s.is_known("P1_a.png", 1, "mtime-of-a").unwrap());
+    // Same content copied elsewhere: recorded as a duplicate, not counted.
+    let copy = facts("copy/P1_a.png", "a");
+    assert!(matches!(s.precheck(&copy).unwrap(), Precheck::Skip(why) if why.contains("same content")));
+    // Even if two workers raced past the precheck, the write re-checks.
+    let copy2 = facts("copy2/P1_a.png", "a");
+    let r = s
+        .record(
+            &copy2,
+            Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8)),
+        )
+        .unwrap();
+    assert_eq!(r, Recorded::Duplicate("P1_a.png".into()));
+    assert_eq!(n_obs(&s), 1);
+    let c = s.image_counts().unwrap();
+    assert_eq!((c.counted, c.duplicate), (1, 2));
+    // Across a restart too.
+    drop(s);
+    let mut s = open(&dir);
+    assert!(matches!(s.precheck(&f).unwrap(), Precheck::Skip(_)));
+    assert_eq!(n_obs(&s), 1);
+}
+
+#[test]
+fn changed_file_is_a_new_version_and_replaces_the_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    let n0 = name("P1", day(0), View::Side(0));
+    s.record(&facts("P1_a.png", "v1"), Outcome::Counted(&n0, &count(8)))
+        .unwrap();
+    s.record(
+        &facts("P1_b.png", "b"),
+        Outcome::Counted(&name("P1", day(1), View::Side(0)), &count(9)),
+    )
+    .unwrap();
+    let v2 = facts("P1_a.png", "v2");
+    assert_eq!(s.precheck(&v2).unwrap(), Precheck::Process);
+    s.record(&v2, Outcome::Counted(&n0, &count(6))).unwrap();
+    let versions: Vec<(i64, String, i64)> = s
+        .conn()
+        .prepare("SELECT version, state, superseded FROM images WHERE path = 'P1_a.png' ORDER BY version")
+        .unwrap()
+        .query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))
+        .unwrap()
+        .collect::<Result<_, _>>()
+        .unwrap();
+    assert_eq!(versions, vec![(1, "counted".into(), 1), (2, "counted".into(), 0)]);
+    // Both observations are kept; the timeline uses only the current version.
+    assert_eq!(n_obs(&s), 3);
+    let t = s.plant_timeline("P1").unwrap().unwrap();
+    assert_eq!(t.sessions[0].fused, 6.0);
+    // A version that turns out undecodable also takes the old count out.
+    s.record(
+        &facts("P1_b.png", "broken"),
+        Outcome::Failed {
+            name: None,
+            error: "bad".into(),
+            retry: false,
+        },
+    )
+    .unwrap();
+    let t = s.plant_timeline("P1").unwrap().unwrap();
+    assert_eq!(t.sessions.len(), 1);
+}
+
+#[test]
+fn failures_are_recorded_and_retried_only_when_transient() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    let bad = facts("holiday.png", "x");
+    let err = "file name holiday.png matches none of the patterns tried: flat = /.../".to_string();
+    s.record(
+        &bad,
+        Outcome::Failed {
+            name: None,
+            error: err.clone(),
+            retry: false,
+        },
+    )
+    .unwrap();
+    assert!(s.is_known("holiday.png", 1, "mtime-of-x").unwrap());
+    assert!(matches!(s.precheck(&bad).unwrap(), Precheck::Skip(_)));
+    assert_eq!(s.recent_failures(5).unwrap(), vec![("holiday.png".into(), err)]);
+    // A runtime failure is retried up to max_attempts (3).
+    let f = facts("P1_a.png", "a");
+    let n = name("P1", day(0), View::Side(0));
+    for attempt in 1..=3 {
+        assert_eq!(s.precheck(&f).unwrap(), Precheck::Process, "attempt {attempt}");
+        s.record(
+            &f,
+            Outcome::Failed {
+                name: Some(&n),
+                error: "runtime busy".into(),
+                retry: true,
+            },
+        )
+        .unwrap();
+    }
+    assert!(matches!(s.precheck(&f).unwrap(), Precheck::Skip(_)));
+    let attempts: i64 = s
+        .conn()
+        .query_row("SELECT attempts FROM images WHERE path = 'P1_a.png'", [], |r| {
+            r.get(0)
+        })
+        .unwrap();
+    assert_eq!(attempts, 3);
+    let feed = s.feed_after(0, None, 100).unwrap();
+    assert!(feed.iter().all(|r| r.kind == "failed"));
+}
+
+#[test]
+fn late_and_out_of_order_images_give_the_same_timeline() {
+    let counts = [8u32, 8, 10, 10, 11, 11, 12, 13, 14, 12, 14];
+    let mut images: Vec<(usize, u16)> = Vec::new();
+    for d in 0..counts.len() {
+        for a in [0u16, 72, 144] {
+            images.push((d, a));
+        }
+    }
+    let run = |order: &[(usize, u16)]| {
+        let dir = tempfile::tempdir().unwrap();
+        let mut s = open(&dir);
+        for &(d, a) in order {
+            let c = counts[d] - u32::from(a == 72);
+            let t = day(d as i64) + Duration::seconds(a as i64);
+            let f = facts(&format!("P1_{d}_{a}.png"), &format!("{d}-{a}"));
+            s.record(&f, Outcome::Counted(&name("P1", t, View::Side(a)), &count(c)))
+                .unwrap();
+        }
+        let events: Vec<u32> = s
+            .feed_after(0, None, 1000)
+            .unwrap()
+            .iter()
+            .flat_map(|r| r.new_leaves.clone())
+            .collect();
+        (
+            serde_json::to_string(&s.plant_timeline("P1").unwrap().unwrap()).unwrap(),
+            events,
+        )
+    };
+    let (in_order, _) = run(&images);
+    let mut shuffled = images.clone();
+    shuffled.reverse();
+    shuffled.swap(0, 17);
+    let (out_of_order, _) = run(&shuffled);
+    assert_eq!(in_order, out_of_order);
+}
+
+#[test]
+fn import_is_fused_like_model_counts_and_idempotent() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    s.record(
+        &facts("P1_a.png", "a"),
+        Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8)),
+    )
+    .unwrap();
+    let rows = vec![
+        (
+            "P1".to_string(),
+            day(0) + Duration::minutes(1),
+            View::parse("human"),
+            9,
+        ),
+        ("P1".to_string(), day(1), View::parse("human"), 11),
+        ("P2".to_string(), day(0), View::parse("SV_108"), 5),
+    ];
+    assert_eq!(s.import("manual.csv", &rows).unwrap(), (3, 2));
+    assert_eq!(s.import("manual.csv", &rows).unwrap(), (3, 2));
+    assert_eq!(s.image_counts().unwrap().imported, 3);
+    let t = s.plant_timeline("P1").unwrap().unwrap();
+    assert_eq!(t.sessions.len(), 2);
+    assert_eq!(t.sessions[0].fused, 9.0); // max of model 8 and manual 9
+    assert_eq!(t.events.len(), 2); // leaves 10, 11
+}
+
+#[test]
+fn migrations_are_versioned_and_readers_check_them() {
+    let dir = tempfile::tempdir().unwrap();
+    drop(open(&dir));
+    let ro = Store::open_read_only(&db(&dir)).unwrap();
+    let mode: String = ro
+        .conn()
+        .query_row("PRAGMA journal_mode", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!(mode, "wal");
+    drop(ro);
+    drop(open(&dir)); // re-opening does not re-run migrations
+    let conn = Connection::open(db(&dir)).unwrap();
+    conn.pragma_update(None, "user_version", 99).unwrap();
+    drop(conn);
+    let err = format!(
+        "{:#}",
+        Store::open(&db(&dir), &TimelineConfig::default(), 3)
+            .err()
+            .unwrap()
+    );
+    assert!(err.contains("newer than this phyllo knows"), "{err}");
+    let err = format!(
+        "{:#}",
+        Store::open_read_only(&dir.path().join("none.sqlite"))
+            .err()
+            .unwrap()
+    );
+    assert!(err.contains("does not exist"), "{err}");
+}
+
+#[test]
+fn recompute_all_applies_a_new_fusion_rule() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    for (a, c) in [(0u16, 7u32), (108, 9)] {
+        let f = facts(&format!("P1_{a}.png"), &a.to_string());
+        s.record(
+            &f,
+            Outcome::Counted(
+                &name("P1", day(0) + Duration::seconds(a as i64), View::Side(a)),
+                &count(c),
+            ),
+        )
+        .unwrap();
+    }
+    drop(s);
+    let tl = TimelineConfig {
+        fusion: "view:SV_0".into(),
+        ..TimelineConfig::default()
+    };
+    let mut s = Store::open(&db(&dir), &tl, 3).unwrap();
+    assert_eq!(s.recompute_all().unwrap(), 1);
+    assert_eq!(s.plant_timeline("P1").unwrap().unwrap().sessions[0].fused, 7.0);
+}

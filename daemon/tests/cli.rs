@@ -1,0 +1,173 @@
+//! The operator commands as separate processes on a real database:
+//! import, tail (in another process), export, timeline (with plot), status.
+
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_phyllo");
+
+fn phyllo(args: &[&str]) -> std::process::Output {
+    Command::new(BIN).args(args).output().unwrap()
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = phyllo(args);
+    assert!(
+        out.status.success(),
+        "phyllo {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// The DESIGN.md ground truth, five side views and a top view per day.
+fn write_obs(path: &Path) {
+    let gt = [8, 8, 10, 10, 11, 11, 12, 13, 14, 12, 14];
+    let mut s = String::from("plant,timestamp,view,leaf_count\n");
+    for (d, c) in gt.iter().enumerate() {
+        for (k, a) in [0, 36, 72, 108, 144].iter().enumerate() {
+            s += &format!(
+                "GT1,2018-04-{:02}T10:00:{:02},SV_{a},{}\n",
+                20 + d,
+                10 * k,
+                c - (k % 2)
+            );
+        }
+        s += &format!("GT1,2018-04-{:02} 10:02:00,TV_90,{}\n", 20 + d, c - 3);
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+#[test]
+fn operator_commands() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cfg = d.join("phyllo.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "drop_dir = {:?}\ndatabase = {:?}\n",
+            d.join("drop"),
+            d.join("state/phyllo.sqlite")
+        ),
+    )
+    .unwrap();
+    let cfg = cfg.to_str().unwrap();
+    let obs = d.join("obs.csv");
+    write_obs(&obs);
+
+    // Create the database, then follow it from another process.
+    ok(&["import", "-c", cfg, obs.to_str().unwrap()]);
+    let mut tail = Command::new(BIN)
+        .args(["tail", "-c", cfg, "--json", "--plant", "GT2"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stdout = tail.stdout.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        BufReader::new(stdout)
+            .lines()
+            .map(|l| l.unwrap())
+            .collect::<Vec<String>>()
+    });
+    std::thread::sleep(Duration::from_millis(700));
+    let obs2 = d.join("obs2.csv");
+    std::fs::write(
+        &obs2,
+        std::fs::read_to_string(&obs).unwrap().replace("GT1", "GT2"),
+    )
+    .unwrap();
+    let out = ok(&["import", "-c", cfg, obs2.to_str().unwrap()]);
+    assert!(out.contains("imported 66 counts for 1 plants"), "{out}");
+    std::thread::sleep(Duration::from_millis(700));
+    let t0 = Instant::now();
+    assert!(Command::new("kill")
+        .args(["-TERM", &tail.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let status = tail.wait().unwrap();
+    assert!(status.success(), "tail exits cleanly on SIGTERM: {status:?}");
+    assert!(t0.elapsed() < Duration::from_secs(5));
+    let lines = reader.join().unwrap();
+    let rows: Vec<serde_json::Value> = lines.iter().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert!(rows.iter().all(|r| r["plant"] == "GT2"), "{lines:?}");
+    assert_eq!(
+        rows.iter().filter(|r| r["kind"] == "event").count(),
+        6,
+        "{lines:?}"
+    );
+    assert_eq!(
+        rows.iter().filter(|r| r["kind"] == "import").count(),
+        1,
+        "{lines:?}"
+    );
+
+    // Export: every kind parses as CSV with a header; the file appears whole.
+    let out = ok(&["export", "-c", cfg]);
+    assert!(out.contains("events: 12 rows"), "{out}");
+    for (kind, rows) in [("sessions", 22), ("timeline", 22), ("events", 12), ("images", 0)] {
+        let path = d.join(format!("state/exports/{kind}.csv"));
+        let mut r = csv::Reader::from_path(&path).unwrap();
+        assert!(!r.headers().unwrap().is_empty());
+        assert_eq!(
+            r.records().collect::<Result<Vec<_>, _>>().unwrap().len(),
+            rows,
+            "{kind}"
+        );
+    }
+    let events = d.join("out/ev.csv");
+    ok(&[
+        "export",
+        "-c",
+        cfg,
+        "--what",
+        "events",
+        "--since",
+        "2018-04-25",
+        "--out",
+        events.to_str().unwrap(),
+    ]);
+    let text = std::fs::read_to_string(&events).unwrap();
+    assert!(
+        text.starts_with("plant,leaf,emerged_at,seen_at,phyllochron_days\r\n"),
+        "{text}"
+    );
+    assert_eq!(text.lines().count(), 1 + 6, "{text}");
+    let leftovers: Vec<_> = std::fs::read_dir(d.join("out"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(leftovers.len(), 1, "no temporary files left: {leftovers:?}");
+    let bad = phyllo(&["export", "-c", cfg, "--what", "plants"]);
+    assert!(!bad.status.success());
+
+    // Timeline: table, events, phyllochron, and a PNG.
+    let png = d.join("gt1.png");
+    let out = ok(&["timeline", "-c", cfg, "GT1", "--plot", png.to_str().unwrap()]);
+    assert!(out.contains("leaf 14 emerged about 2018-04-29"), "{out}");
+    assert!(out.contains("phyllochron:"), "{out}");
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (1000, 600));
+    let out = phyllo(&["timeline", "-c", cfg, "NOPE"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no plant 'NOPE'"));
+
+    // Status works without a running service.
+    let out = ok(&["status", "-c", cfg]);
+    assert!(
+        out.contains("never started") && out.contains("132 imported counts; 2 plants"),
+        "{out}"
+    );
+
+    // Bad config: named file, clear problem, non-zero exit.
+    let badcfg = d.join("bad.toml");
+    std::fs::write(&badcfg, "drop_dir = \"/x\"\ndatabase = \"/y\"\nworkerz = 3\n").unwrap();
+    let out = phyllo(&["status", "-c", badcfg.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("bad.toml") && err.contains("workerz"),
+        "{err}"
+    );
+}

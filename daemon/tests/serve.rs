@@ -1,0 +1,274 @@
+//! The service end to end on a real directory with real inotify events and a
+//! real SQLite file. The model is replaced by a counter that reads the leaf
+//! count from the file's text, so these tests need no ONNX Runtime; the e2e
+//! tests in `tests/` run the real model.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use phyllo::config::Config;
+use phyllo::counting::{CountError, LeafCounter};
+use phyllo::store::{CountRecord, Store};
+use tokio::sync::watch;
+
+/// Reads "leaves=N ... END" files. Anything else (a partial file included) is an
+/// undecodable image, which the service must record as failed.
+struct TextCounter;
+
+impl LeafCounter for TextCounter {
+    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError> {
+        let text = String::from_utf8_lossy(bytes);
+        let n = text
+            .strip_prefix("leaves=")
+            .and_then(|r| r.split_whitespace().next())
+            .and_then(|n| n.parse::<u32>().ok())
+            .filter(|_| text.trim_end().ends_with("END"));
+        match n {
+            Some(n) => Ok(CountRecord {
+                leaf_count: n,
+                instances: serde_json::json!([]),
+                timing: serde_json::json!({"total": 1.0}),
+                ms_total: 1.0,
+                model_id: "text-counter".into(),
+            }),
+            None => Err(CountError {
+                message: format!("image {}: not a complete image", name.display()),
+                retry: false,
+            }),
+        }
+    }
+
+    fn model_id(&self) -> String {
+        "text-counter".into()
+    }
+}
+
+fn config(dir: &Path) -> Config {
+    let text = format!(
+        "drop_dir = {:?}\ndatabase = {:?}\n[watch]\nstable_secs = 1.5\nsettle_ms = 100\npoll_ms = 50\nrescan_secs = 3\n",
+        dir.join("drop"),
+        dir.join("state/phyllo.sqlite")
+    );
+    Config::parse(&text).unwrap()
+}
+
+fn body(n: u32) -> String {
+    format!("leaves={n} {}END\n", "x".repeat(2000))
+}
+
+fn name(plant: &str, day: u32, angle: u32) -> String {
+    format!(
+        "{plant}_2018-04-{day:02}_10-00-{:02}_Vis_SV_{angle}.png",
+        angle / 36
+    )
+}
+
+struct Running {
+    stop: watch::Sender<bool>,
+    handle: std::thread::JoinHandle<anyhow::Result<()>>,
+}
+
+fn start(cfg: Config) -> Running {
+    let (stop, rx) = watch::channel(false);
+    let handle = std::thread::spawn(move || {
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .unwrap();
+        rt.block_on(phyllo::service::run(cfg, Arc::new(TextCounter), rx))
+    });
+    Running { stop, handle }
+}
+
+impl Running {
+    fn stop(self) {
+        self.stop.send(true).unwrap();
+        self.handle.join().unwrap().unwrap();
+    }
+}
+
+fn query(db: &Path, sql: &str) -> i64 {
+    let Ok(s) = Store::open_read_only(db) else {
+        return -1;
+    };
+    s.conn().query_row(sql, [], |r| r.get(0)).unwrap_or(-1)
+}
+
+fn wait_for(what: &str, timeout: Duration, mut cond: impl FnMut() -> bool) {
+    let t0 = Instant::now();
+    while !cond() {
+        assert!(t0.elapsed() < timeout, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+#[test]
+fn serve_counts_every_complete_image_exactly_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = config(dir.path());
+    let drop = cfg.drop_dir.clone();
+    let db = cfg.database.clone();
+    std::fs::create_dir_all(&drop).unwrap();
+    // Present before start: found by the start-up scan.
+    std::fs::write(drop.join(name("P1", 1, 0)), body(8)).unwrap();
+
+    // `tail` follows the feed in parallel, as an operator would.
+    let tail_out = Arc::new(Mutex::new(Vec::<u8>::new()));
+    let tail_stop = Arc::new(AtomicBool::new(false));
+    let tail = {
+        let (db, out, stop) = (db.clone(), tail_out.clone(), tail_stop.clone());
+        std::thread::spawn(move || {
+            let mut buf = Vec::new();
+            phyllo::sinks::tail::follow(&db, None, true, true, &mut buf, &|| stop.load(Ordering::Relaxed))
+                .unwrap();
+            out.lock().unwrap().extend(buf);
+        })
+    };
+
+    let svc = start(cfg.clone());
+    wait_for("start-up scan", Duration::from_secs(20), || {
+        query(&db, "SELECT COUNT(*) FROM observations") == 1
+    });
+
+    // Close-after-write.
+    std::fs::write(drop.join(name("P1", 2, 0)), body(9)).unwrap();
+    // Written slowly, kept open, with pauses shorter than stable_secs.
+    let slow = drop.join(name("P1", 3, 0));
+    let writer = std::thread::spawn(move || {
+        let mut f = std::fs::File::create(&slow).unwrap();
+        for chunk in body(10).as_bytes().chunks(500) {
+            f.write_all(chunk).unwrap();
+            f.flush().unwrap();
+            std::thread::sleep(Duration::from_millis(300));
+        }
+    });
+    // Renamed into place from a hidden temporary file.
+    let tmp = drop.join(".incoming.png");
+    std::fs::write(&tmp, body(11)).unwrap();
+    std::fs::rename(&tmp, drop.join(name("P1", 4, 0))).unwrap();
+    // A new snapshot folder with files written right away.
+    let snap = drop.join("2018-04-01_Exp_P2_2018-04-05_09-00-00_17");
+    std::fs::create_dir_all(snap.join("Vis_SV_72")).unwrap();
+    std::fs::write(snap.join("Vis_SV_72/0_0_0.png"), body(6)).unwrap();
+    std::fs::write(snap.join("0_36_0.png"), body(7)).unwrap();
+    // Bad input: an unmatched name and an undecodable image.
+    std::fs::write(drop.join("holiday.png"), body(3)).unwrap();
+    std::fs::write(drop.join(name("P3", 1, 0)), "garbage").unwrap();
+    // The same content under another name.
+    std::fs::create_dir_all(drop.join("copies")).unwrap();
+    std::fs::write(drop.join("copies").join(name("P1", 2, 0)), body(9)).unwrap();
+    writer.join().unwrap();
+
+    wait_for("all images", Duration::from_secs(30), || {
+        query(&db, "SELECT COUNT(*) FROM images") == 9
+    });
+    std::thread::sleep(Duration::from_millis(500));
+    assert_eq!(
+        query(&db, "SELECT COUNT(*) FROM observations"),
+        6,
+        "six distinct complete images"
+    );
+    assert_eq!(
+        query(&db, "SELECT COUNT(*) FROM images WHERE state = 'duplicate'"),
+        1
+    );
+    assert_eq!(
+        query(&db, "SELECT COUNT(*) FROM images WHERE state = 'failed'"),
+        2
+    );
+    // The slow file was never taken while partial.
+    assert_eq!(
+        query(
+            &db,
+            "SELECT COUNT(*) FROM images WHERE path LIKE 'P1_2018-04-03%'"
+        ),
+        1
+    );
+    assert_eq!(query(&db, "SELECT leaf_count FROM observations o JOIN images i ON i.id = o.image_id WHERE i.path LIKE 'P1_2018-04-03%'"), 10);
+    let store = Store::open_read_only(&db).unwrap();
+    let failures = store.recent_failures(10).unwrap();
+    let holiday = failures
+        .iter()
+        .find(|(p, _)| p == "holiday.png")
+        .expect("holiday.png recorded");
+    assert!(
+        holiday.1.contains("holiday.png") && holiday.1.contains("snapshot-dir"),
+        "{}",
+        holiday.1
+    );
+    assert!(failures
+        .iter()
+        .any(|(p, e)| p.starts_with("P3_") && e.contains("not a complete image")));
+    let p2 = store.plant_timeline("P2").unwrap().unwrap();
+    assert_eq!((p2.sessions.len(), p2.sessions[0].fused), (1, 7.0));
+    let p1 = store.plant_timeline("P1").unwrap().unwrap();
+    assert_eq!(p1.sessions.len(), 4);
+    let leaves: Vec<u32> = p1.events.iter().map(|e| e.0).collect();
+    assert_eq!(leaves, vec![9, 10, 11]);
+
+    // A changed file is a new version.
+    std::fs::write(drop.join(name("P1", 4, 0)), body(12)).unwrap();
+    wait_for("new version", Duration::from_secs(20), || {
+        query(&db, "SELECT MAX(version) FROM images") == 2
+    });
+    svc.stop();
+    assert_eq!(
+        store.service().unwrap().get("state").map(String::as_str),
+        Some("stopped")
+    );
+
+    // While down: one new file. After restart it is counted; nothing else is recounted.
+    std::fs::write(drop.join(name("P1", 5, 0)), body(13)).unwrap();
+    let svc = start(cfg.clone());
+    wait_for("file added while down", Duration::from_secs(20), || {
+        query(&db, "SELECT COUNT(*) FROM observations") == 8
+    });
+    std::thread::sleep(Duration::from_millis(500));
+    assert_eq!(query(&db, "SELECT COUNT(*) FROM observations"), 8);
+    assert_eq!(
+        query(&db, "SELECT SUM(attempts) FROM images WHERE state = 'failed'"),
+        2,
+        "bad files not retried"
+    );
+
+    // The drop directory deleted and recreated: the watch comes back.
+    std::fs::remove_dir_all(&drop).unwrap();
+    std::fs::create_dir_all(&drop).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    std::fs::write(drop.join(name("P4", 1, 0)), body(5)).unwrap();
+    wait_for("image in recreated drop dir", Duration::from_secs(30), || {
+        query(&db, "SELECT COUNT(*) FROM plants WHERE name = 'P4'") == 1
+    });
+    svc.stop();
+
+    tail_stop.store(true, Ordering::Relaxed);
+    tail.join().unwrap();
+    let out = String::from_utf8(tail_out.lock().unwrap().clone()).unwrap();
+    let rows: Vec<serde_json::Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let counts = rows.iter().filter(|r| r["kind"] == "count").count();
+    assert_eq!(counts, 9, "tail saw every count:\n{out}");
+    assert!(rows.iter().any(|r| r["kind"] == "event" && r["plant"] == "P1"));
+    assert!(rows
+        .iter()
+        .any(|r| r["kind"] == "failed" && r["path"] == "holiday.png"));
+}
+
+#[test]
+fn missing_drop_dir_is_waited_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = config(dir.path());
+    let db: PathBuf = cfg.database.clone();
+    let svc = start(cfg.clone());
+    wait_for("service start", Duration::from_secs(10), || db.exists());
+    std::thread::sleep(Duration::from_millis(300));
+    std::fs::create_dir_all(&cfg.drop_dir).unwrap();
+    std::fs::write(cfg.drop_dir.join(name("P9", 1, 0)), body(4)).unwrap();
+    wait_for("image in late drop dir", Duration::from_secs(30), || {
+        query(&db, "SELECT COUNT(*) FROM observations") == 1
+    });
+    svc.stop();
+}

@@ -1,0 +1,87 @@
+//! The systemd units: `systemd-analyze verify` accepts them, and the service's
+//! hardening keeps `systemd-analyze security` exposure at or below 2.0.
+//! Skipped, with the reason printed, where systemd-analyze is not installed.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const UNITS: [&str; 3] = ["phyllo.service", "phyllo-export.service", "phyllo-export.timer"];
+
+fn systemd_analyze() -> Option<PathBuf> {
+    let ok = Command::new("systemd-analyze")
+        .arg("--version")
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    if ok {
+        Some(PathBuf::from("systemd-analyze"))
+    } else {
+        eprintln!("SKIPPED: systemd-analyze is not installed");
+        None
+    }
+}
+
+/// Copies the units, pointing ExecStart at the binary cargo just built (verify
+/// checks that the command exists and is executable).
+fn units_in(dir: &Path) -> Vec<PathBuf> {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../systemd");
+    UNITS
+        .iter()
+        .map(|u| {
+            let text = std::fs::read_to_string(src.join(u)).unwrap();
+            let text = text.replace("/usr/local/bin/phyllo", env!("CARGO_BIN_EXE_phyllo"));
+            let out = dir.join(u);
+            std::fs::write(&out, text).unwrap();
+            out
+        })
+        .collect()
+}
+
+#[test]
+fn units_verify() {
+    let Some(sa) = systemd_analyze() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let units = units_in(dir.path());
+    let out = Command::new(&sa).arg("verify").args(&units).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    // Only complaints about our own units count; the host's other units may be odd.
+    let ours: Vec<&str> = stderr
+        .lines()
+        .filter(|l| UNITS.iter().any(|u| l.contains(u)))
+        .collect();
+    assert!(
+        out.status.success() && ours.is_empty(),
+        "systemd-analyze verify:\n{stderr}"
+    );
+}
+
+#[test]
+fn service_exposure_is_at_most_2() {
+    let Some(sa) = systemd_analyze() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let units = units_in(dir.path());
+    for unit in &units[..2] {
+        let out = Command::new(&sa)
+            .args(["security", "--offline=yes", "--no-pager"])
+            .arg(unit)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        let Some(line) = text.lines().find(|l| l.contains("Overall exposure level")) else {
+            eprintln!(
+                "SKIPPED: this systemd-analyze has no offline security analysis:\n{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            return;
+        };
+        let level: f64 = line
+            .split(':')
+            .nth(1)
+            .and_then(|r| r.split_whitespace().next())
+            .unwrap()
+            .parse()
+            .unwrap();
+        eprintln!("{line}");
+        assert!(level <= 2.0, "{}: {line}", unit.display());
+    }
+}

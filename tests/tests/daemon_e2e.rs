@@ -1,0 +1,352 @@
+//! The daemon end to end, as the facility runs it: `phyllo-gen sequence`
+//! frames for a few plants over several days are dropped — shuffled, some
+//! written slowly, some renamed into place — into the watched directory of a
+//! running `phyllo serve` (real model, real ONNX Runtime, real inotify, real
+//! SQLite). `phyllo tail` runs in another process. Checks: every image counted
+//! exactly once, tail saw every count, SIGTERM stops the service cleanly, the
+//! exported CSVs parse; the timeline's emergence dates are compared with
+//! `truth.csv` and the error is printed (it measures the model, so it is
+//! reported, not asserted).
+//!
+//! Size: `PHYLLO_E2E_PLANTS` (default 3) × `PHYLLO_E2E_DAYS` (default 4) × 6
+//! views. Frames are cached under `target/e2e-cache/` (the generator skips
+//! frames that exist), so reruns only pay for counting.
+
+use std::collections::{BTreeMap, HashSet};
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use chrono_free::days_between;
+
+/// Date arithmetic on `YYYY-MM-DD` without a date crate.
+mod chrono_free {
+    fn days(s: &str) -> i64 {
+        let p: Vec<i64> = s[..10].split('-').map(|x| x.parse().unwrap()).collect();
+        let (y, m, d) = (p[0] - i64::from(p[1] <= 2), p[1], p[2]);
+        let era = y.div_euclid(400);
+        let yoe = y - era * 400;
+        let doy = (153 * (if m > 2 { m - 3 } else { m + 9 }) + 2) / 5 + d - 1;
+        era * 146_097 + yoe * 365 + yoe / 4 - yoe / 100 + doy
+    }
+
+    /// Fractional days from `a` (YYYY-MM-DD) to `b` (YYYY-MM-DD[THH:MM:SS...]).
+    pub fn days_between(a: &str, b: &str) -> f64 {
+        let mut t = (days(b) - days(a)) as f64;
+        if b.len() >= 19 {
+            let h: f64 = b[11..13].parse().unwrap();
+            let m: f64 = b[14..16].parse().unwrap();
+            t += (h + m / 60.0) / 24.0;
+        }
+        t
+    }
+}
+
+fn env_or(name: &str, default: u32) -> u32 {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+/// The workspace's target directory and the binaries in it, built if missing.
+fn binaries() -> (PathBuf, PathBuf, PathBuf) {
+    let exe = std::env::current_exe().unwrap();
+    let profile_dir = exe.parent().unwrap().parent().unwrap().to_path_buf(); // target/<profile>/deps/..
+    let target = profile_dir.parent().unwrap().to_path_buf();
+    let phyllo = profile_dir.join("phyllo");
+    let gen = profile_dir.join("phyllo-gen");
+    if !phyllo.exists() || !gen.exists() {
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+        let mut cmd = Command::new(cargo);
+        cmd.args(["build", "-p", "phyllo", "-p", "phyllo-gen"])
+            .current_dir(phyllo_e2e::repo_root());
+        if profile_dir.file_name().is_some_and(|n| n == "release") {
+            cmd.arg("--release");
+        }
+        assert!(cmd.status().unwrap().success(), "building phyllo and phyllo-gen");
+    }
+    (target, phyllo, gen)
+}
+
+/// A deterministic shuffle (xorshift), so a failure reproduces.
+fn shuffle<T>(v: &mut [T], mut seed: u64) {
+    for i in (1..v.len()).rev() {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        v.swap(i, (seed % (i as u64 + 1)) as usize);
+    }
+}
+
+fn kill_term(child: &Child) {
+    assert!(Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+}
+
+fn read_csv(path: &Path) -> Vec<BTreeMap<String, String>> {
+    let mut r = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let headers = r.headers().unwrap().clone();
+    r.records()
+        .map(|rec| {
+            let rec = rec.unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            headers
+                .iter()
+                .zip(rec.iter())
+                .map(|(h, v)| (h.to_string(), v.to_string()))
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn daemon_counts_a_generated_sequence() {
+    let (target, phyllo, gen) = binaries();
+    let (plants, days, seed) = (env_or("PHYLLO_E2E_PLANTS", 3), env_or("PHYLLO_E2E_DAYS", 4), 11);
+    let frames_dir = target.join(format!("e2e-cache/sequence-p{plants}-d{days}-s{seed}"));
+    let t0 = Instant::now();
+    let out = Command::new(&gen)
+        .args(["sequence", "--out"])
+        .arg(&frames_dir)
+        .args([
+            "--plants",
+            &plants.to_string(),
+            "--days",
+            &days.to_string(),
+            "--seed",
+            &seed.to_string(),
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "phyllo-gen sequence: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    eprintln!("generated {plants} plants x {days} days in {:.0?}", t0.elapsed());
+    let mut frames: Vec<PathBuf> = std::fs::read_dir(&frames_dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .collect();
+    frames.sort();
+    let n = frames.len();
+    assert_eq!(n as u32, plants * days * 6, "frames written");
+
+    let dir = tempfile::tempdir().unwrap();
+    let drop_dir = dir.path().join("drop");
+    std::fs::create_dir_all(&drop_dir).unwrap();
+    let cfg = dir.path().join("phyllo.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "drop_dir = {:?}\ndatabase = {:?}\n[watch]\nstable_secs = 2.0\nsettle_ms = 200\npoll_ms = 100\n",
+            drop_dir,
+            dir.path().join("state/phyllo.sqlite")
+        ),
+    )
+    .unwrap();
+    let log = std::fs::File::create(dir.path().join("serve.log")).unwrap();
+    let mut serve = Command::new(&phyllo)
+        .arg("serve")
+        .arg("-c")
+        .arg(&cfg)
+        .stderr(log)
+        .spawn()
+        .unwrap();
+    // tail starts before the service has created the database, and waits for it.
+    let mut tail = Command::new(&phyllo)
+        .args(["tail", "--json", "-c"])
+        .arg(&cfg)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let tail_out = tail.stdout.take().unwrap();
+    let tail_reader = std::thread::spawn(move || {
+        BufReader::new(tail_out)
+            .lines()
+            .map(|l| l.unwrap())
+            .collect::<Vec<String>>()
+    });
+    std::thread::sleep(Duration::from_secs(2));
+
+    // Drop the frames: shuffled; a third written slowly through an open file,
+    // a third written hidden and renamed into place, a third copied.
+    let mut order = frames.clone();
+    shuffle(&mut order, 0x5eed);
+    let t_drop = Instant::now();
+    for (i, src) in order.iter().enumerate() {
+        let name = src.file_name().unwrap();
+        let dst = drop_dir.join(name);
+        match i % 3 {
+            0 => {
+                let bytes = std::fs::read(src).unwrap();
+                let mut f = std::fs::File::create(&dst).unwrap();
+                for chunk in bytes.chunks(bytes.len() / 4 + 1) {
+                    f.write_all(chunk).unwrap();
+                    f.flush().unwrap();
+                    std::thread::sleep(Duration::from_millis(150));
+                }
+            }
+            1 => {
+                let tmp = drop_dir.join(format!(".{}.part", name.to_string_lossy()));
+                std::fs::copy(src, &tmp).unwrap();
+                std::fs::rename(&tmp, &dst).unwrap();
+            }
+            _ => {
+                std::fs::copy(src, &dst).unwrap();
+            }
+        }
+    }
+    let status = |field: &str| -> i64 {
+        let out = Command::new(&phyllo)
+            .args(["status", "--json", "-c"])
+            .arg(&cfg)
+            .output()
+            .unwrap();
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap_or_default();
+        v["images"][field].as_i64().unwrap_or(-1)
+    };
+    let deadline = Instant::now() + Duration::from_secs(120 + 10 * n as u64);
+    while status("counted") + status("failed") + status("duplicate") < n as i64 {
+        if let Some(st) = serve.try_wait().unwrap() {
+            panic!(
+                "phyllo serve exited early ({st}): {}",
+                std::fs::read_to_string(dir.path().join("serve.log")).unwrap()
+            );
+        }
+        assert!(
+            Instant::now() < deadline,
+            "timed out; log:\n{}",
+            std::fs::read_to_string(dir.path().join("serve.log")).unwrap()
+        );
+        std::thread::sleep(Duration::from_millis(500));
+    }
+    let took = t_drop.elapsed();
+    std::thread::sleep(Duration::from_secs(1));
+    assert_eq!(status("counted"), n as i64, "every image counted");
+    assert_eq!(
+        status("failed"),
+        0,
+        "no failures: {}",
+        std::fs::read_to_string(dir.path().join("serve.log")).unwrap()
+    );
+    assert_eq!(status("duplicate"), 0);
+    eprintln!(
+        "{n} images counted in {took:.1?} after the first drop ({:.2} s/image)",
+        took.as_secs_f64() / n as f64
+    );
+
+    // SIGTERM: clean stop, reported as such.
+    kill_term(&serve);
+    let st = serve.wait().unwrap();
+    assert!(st.success(), "phyllo serve exit status {st}");
+    let out = Command::new(&phyllo)
+        .args(["status", "--json", "-c"])
+        .arg(&cfg)
+        .output()
+        .unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["state"], "stopped");
+    kill_term(&tail);
+    tail.wait().unwrap();
+    let lines = tail_reader.join().unwrap();
+    let counts: Vec<serde_json::Value> = lines
+        .iter()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|r| r["kind"] == "count")
+        .collect();
+    let paths: HashSet<&str> = counts.iter().map(|r| r["path"].as_str().unwrap()).collect();
+    assert_eq!(
+        (counts.len(), paths.len()),
+        (n, n),
+        "tail saw every count exactly once"
+    );
+
+    // Exports parse, with one image row per frame.
+    let out = Command::new(&phyllo)
+        .args(["export", "-c"])
+        .arg(&cfg)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let exports = dir.path().join("state/exports");
+    let images = read_csv(&exports.join("images.csv"));
+    assert_eq!(images.len(), n);
+    assert!(images
+        .iter()
+        .all(|r| r["state"] == "counted" && r["version"] == "1"));
+    let sessions = read_csv(&exports.join("sessions.csv"));
+    assert_eq!(
+        sessions.len() as u32,
+        plants * days,
+        "one session per plant and day"
+    );
+    let timeline = read_csv(&exports.join("timeline.csv"));
+    let events = read_csv(&exports.join("events.csv"));
+
+    // Compare with the generator's truth.
+    let truth = read_csv(&frames_dir.join("truth.csv"));
+    let mut sq_living = 0.0;
+    let mut sq_emerged = 0.0;
+    for t in &truth {
+        let row = timeline
+            .iter()
+            .find(|r| r["plant"] == t["plant"] && r["session_start"].starts_with(&t["date"]))
+            .unwrap_or_else(|| panic!("no timeline row for {} {}", t["plant"], t["date"]));
+        let f = |r: &BTreeMap<String, String>, k: &str| r[k].parse::<f64>().unwrap();
+        sq_living += (f(row, "living") - f(t, "living_leaves")).powi(2);
+        sq_emerged += (f(row, "leaves_emerged") - f(t, "leaves_emerged")).powi(2);
+    }
+    let mut errs = Vec::new();
+    let mut truth_events = 0;
+    for p in truth
+        .iter()
+        .map(|t| t["plant"].clone())
+        .collect::<std::collections::BTreeSet<_>>()
+    {
+        let first = truth.iter().find(|t| t["plant"] == p).unwrap()["date"].clone();
+        let last = truth.iter().rev().find(|t| t["plant"] == p).unwrap();
+        let dates: Vec<&str> = last["emergence_dates"]
+            .split(';')
+            .filter(|s| !s.is_empty())
+            .collect();
+        // Only emergences after the first imaging day can be dated from images.
+        truth_events += dates.iter().filter(|d| **d > first.as_str()).count();
+        for e in events.iter().filter(|e| e["plant"] == p) {
+            let leaf: usize = e["leaf"].parse().unwrap();
+            if let Some(d) = dates.get(leaf - 1) {
+                errs.push(days_between(d, &e["emerged_at"]));
+            }
+        }
+    }
+    let rows = truth.len() as f64;
+    let mae = if errs.is_empty() {
+        f64::NAN
+    } else {
+        errs.iter().map(|e| e.abs()).sum::<f64>() / errs.len() as f64
+    };
+    let bias = if errs.is_empty() {
+        f64::NAN
+    } else {
+        errs.iter().sum::<f64>() / errs.len() as f64
+    };
+    eprintln!(
+        "E2E vs truth.csv: {} plants x {} days; living leaves RMSE {:.2}, leaves emerged RMSE {:.2}; \
+         emergence events: {} predicted, {} dateable in truth, {} matched by leaf number, MAE {:.2} days, bias {:+.2} days",
+        plants,
+        days,
+        (sq_living / rows).sqrt(),
+        (sq_emerged / rows).sqrt(),
+        events.len(),
+        truth_events,
+        errs.len(),
+        mae,
+        bias
+    );
+}
