@@ -18,6 +18,7 @@ pub use phyllo_inference as inference;
 pub mod cli;
 pub mod config;
 pub mod counting;
+pub mod evaluation;
 pub mod names;
 pub mod service;
 pub mod sinks;

@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod count;
 pub mod counter_args;
+pub mod eval;
 pub mod export;
 pub mod import;
 pub mod serve;
@@ -46,6 +47,8 @@ pub enum Command {
     Count(count::Args),
     /// Time each inference stage on full camera frames, beside a Python pipeline.
     Bench(bench::Args),
+    /// Measure counting accuracy on a phyllo-gen dataset or on real images with human counts.
+    Eval(eval::Args),
 }
 
 /// `--config FILE`, shared by every subcommand that needs the config.
@@ -75,5 +78,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Status(a) => ok(status::run(a)),
         Command::Count(a) => count::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Eval(a) => eval::run(a),
     }
 }

@@ -15,7 +15,8 @@ use crate::store::{parse_iso, PlantTimeline};
 
 static FONT: Once = Once::new();
 
-fn register_font() {
+/// Registers the embedded DejaVu Sans as plotters' "sans-serif" (once).
+pub fn register_font() {
     FONT.call_once(|| {
         if plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular()).is_err() {
             tracing::warn!("could not register the embedded font; the plot will have no text");

@@ -1,0 +1,208 @@
+//! `phyllo eval`: count accuracy (and, with labels, segmentation quality) of
+//! the model on a phyllo-gen dataset or on real images with human counts.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{bail, Context};
+use phyllo_contract::Contract;
+use phyllo_inference::region::RegionMode;
+use phyllo_inference::Counter;
+use serde_json::json;
+
+use super::counter_args::CounterArgs;
+use crate::evaluation::metrics::{confusion, confusion_table, per_view, CountMetrics, CountPair};
+use crate::evaluation::segmentation::{match_leaves, panoptic_quality, LeafMatch, PixelMap};
+use crate::evaluation::{plots, sources};
+
+/// Arguments of `phyllo eval`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Model and runtime options.
+    #[command(flatten)]
+    pub counter: CounterArgs,
+    /// A phyllo-gen dataset directory (with manifest.jsonl).
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["counts", "images"])]
+    pub dataset: Option<PathBuf>,
+    /// Dataset split to evaluate (`all` for every row).
+    #[arg(long, default_value = "val")]
+    pub split: String,
+    /// CSV of human counts with `file` and `leaf_count` columns.
+    #[arg(long, value_name = "CSV", requires = "images")]
+    pub counts: Option<PathBuf>,
+    /// Directory holding the CSV's images.
+    #[arg(long, value_name = "DIR", requires = "counts")]
+    pub images: Option<PathBuf>,
+    /// Print one JSON object instead of the tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Write scatter.png and error_histogram.png here.
+    #[arg(long, value_name = "DIR")]
+    pub plots: Option<PathBuf>,
+    /// Also print each image's true and predicted count.
+    #[arg(long)]
+    pub per_image: bool,
+}
+
+/// Runs the evaluation.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let c = Contract::embedded();
+    let mut config = args.counter.config()?;
+    let dataset_mode = args.dataset.is_some();
+    if dataset_mode {
+        // Dataset images are already crops at the contract's scale.
+        config.scale = Some(1.0);
+        config.region = RegionMode::Full;
+    }
+    let counter = Counter::new(config)?;
+    if !counter.model_info().trained {
+        eprintln!(
+            "phyllo: warning: model {} is UNTRAINED: these numbers mean nothing",
+            counter.model_id()
+        );
+    }
+    let mut pairs = Vec::new();
+    let mut matches: Vec<LeafMatch> = Vec::new();
+    let mut failed = Vec::new();
+    let title;
+    if let Some(dir) = &args.dataset {
+        title = format!("{} ({})", dir.display(), args.split);
+        let split = (args.split != "all").then_some(args.split.as_str());
+        // A leaf the model cannot resolve at its stride is not a countable leaf.
+        let min_pixels = (c.postprocess.min_leaf_area * c.outputs.stride * c.outputs.stride) as usize;
+        for item in sources::read_manifest(dir, split)? {
+            let outcome = (|| -> anyhow::Result<(CountPair, LeafMatch)> {
+                let bytes = std::fs::read(&item.image)
+                    .with_context(|| format!("cannot read {}", item.image.display()))?;
+                let analysis = counter.analyse_bytes(&item.image, &bytes)?;
+                let label = image::open(&item.label)
+                    .with_context(|| format!("cannot read label {}", item.label.display()))?
+                    .into_luma16();
+                let (w, h) = (label.width() as usize, label.height() as usize);
+                if [w as u32, h as u32] != analysis.result.image_size {
+                    bail!(
+                        "label {} is {w}x{h}, its image is {:?}",
+                        item.label.display(),
+                        analysis.result.image_size
+                    );
+                }
+                let truth = PixelMap::from_label(c, w, h, label.as_raw());
+                let pred = PixelMap::from_analysis(c, &analysis, w, h);
+                let pair = CountPair {
+                    file: item.image.display().to_string(),
+                    view: item.view.clone(),
+                    truth: truth.countable_leaves(min_pixels),
+                    predicted: analysis.result.leaf_count,
+                };
+                Ok((pair, match_leaves(&truth, &pred)))
+            })();
+            match outcome {
+                Ok((p, m)) => {
+                    pairs.push(p);
+                    matches.push(m);
+                }
+                Err(e) => failed.push(format!("{e:#}")),
+            }
+        }
+    } else if let (Some(csv), Some(images)) = (&args.counts, &args.images) {
+        title = csv
+            .file_name()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        for hc in sources::read_counts(csv, images)? {
+            match counter.count_path(&hc.image) {
+                Ok(r) => pairs.push(CountPair {
+                    file: hc.image.display().to_string(),
+                    view: hc.view,
+                    truth: hc.count,
+                    predicted: r.leaf_count,
+                }),
+                Err(e) => failed.push(e.to_string()),
+            }
+        }
+    } else {
+        bail!("give --dataset DIR, or --counts CSV with --images DIR");
+    }
+
+    let metrics = CountMetrics::of(&pairs);
+    let views = per_view(&pairs);
+    let seg = (!matches.is_empty()).then(|| {
+        let miou = matches.iter().map(|m| m.mean_iou).sum::<f64>() / matches.len() as f64;
+        (miou, panoptic_quality(&matches))
+    });
+    if let Some(dir) = &args.plots {
+        plots::write(&pairs, &metrics, &title, dir)?;
+    }
+    if args.json {
+        let conf: Vec<_> = confusion(&pairs)
+            .into_iter()
+            .map(|((t, p), n)| json!([t, p, n]))
+            .collect();
+        let mut v = json!({
+            "model": counter.model_id(),
+            "source": title,
+            "metrics": metrics,
+            "per_view": views,
+            "confusion": conf,
+            "failed": failed,
+        });
+        if let Some((miou, pq)) = seg {
+            v["mean_iou"] = json!(miou);
+            v["panoptic_quality"] = json!(pq);
+        }
+        if args.per_image {
+            v["images"] = json!(pairs);
+        }
+        println!("{v}");
+    } else {
+        println!("model    {}", counter.model_id());
+        println!("source   {title}");
+        if args.per_image {
+            for p in &pairs {
+                println!(
+                    "{}\t{}\ttrue {}\tpredicted {}",
+                    p.file, p.view, p.truth, p.predicted
+                );
+            }
+        }
+        println!();
+        println!("| images | exact | within ±1 | RMSE | MAE | bias | R² |");
+        println!("|---:|---:|---:|---:|---:|---:|---:|");
+        print_row(&metrics);
+        if let Some((miou, pq)) = seg {
+            println!("\nmean leaf IoU per image (stem lenient) {miou:.3}\nleaf panoptic quality {pq:.3}");
+        }
+        println!("\nper view:");
+        println!("| view | images | exact | within ±1 | RMSE | MAE | bias | R² |");
+        println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+        for (view, m) in &views {
+            print!("| {view} ");
+            print_row(m);
+        }
+        println!(
+            "\nconfusion (rows: true count, columns: predicted):\n{}",
+            confusion_table(&pairs)
+        );
+        for f in &failed {
+            println!("failed: {f}");
+        }
+    }
+    Ok(if failed.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+fn print_row(m: &CountMetrics) {
+    println!(
+        "| {} | {:.1}% | {:.1}% | {:.3} | {:.3} | {:+.3} | {:.3} |",
+        m.images,
+        m.exact * 100.0,
+        m.within_1 * 100.0,
+        m.rmse,
+        m.mae,
+        m.bias,
+        m.r2
+    );
+}

@@ -1,0 +1,8 @@
+//! `phyllo eval`: how well the model counts, on synthetic datasets with exact
+//! labels and on real images with human counts, through the same inference
+//! path as the daemon.
+
+pub mod metrics;
+pub mod plots;
+pub mod segmentation;
+pub mod sources;

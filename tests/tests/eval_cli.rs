@@ -1,0 +1,83 @@
+//! `phyllo eval` end to end: a fresh phyllo-gen dataset and the real
+//! development counts through the real binary.
+
+use std::process::Command;
+
+use phyllo_e2e::{binary, dev_data, phyllo, run, untrained_model};
+use serde_json::Value;
+
+#[test]
+fn evaluates_a_generated_dataset_against_its_labels() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("ds");
+    let (out, _, stderr) = run(Command::new(binary("phyllo-gen", "phyllo-gen"))
+        .args([
+            "dataset", "--plants", "2", "--seed", "77", "--views", "0,108", "--quiet", "--out",
+        ])
+        .arg(&data));
+    assert!(out.status.success(), "phyllo-gen: {stderr}");
+    let plots = tmp.path().join("plots");
+    let (out, stdout, stderr) = run(phyllo()
+        .args(["eval", "--split", "all", "--json", "--per-image", "--model"])
+        .arg(untrained_model())
+        .arg("--dataset")
+        .arg(&data)
+        .arg("--plots")
+        .arg(&plots));
+    assert!(out.status.success(), "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(v["metrics"]["images"], 4);
+    assert!(
+        v["mean_iou"].as_f64().is_some() && v["panoptic_quality"].as_f64().is_some(),
+        "{v}"
+    );
+    // The eval's truth is read from the label PNGs; it must agree with the
+    // generator's own per-leaf areas in the manifest at the contract's
+    // minimum countable area (24 output px at stride 2 = 96 image px).
+    let manifest = std::fs::read_to_string(data.join("manifest.jsonl")).unwrap();
+    let rows: Vec<Value> = manifest
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    for img in v["images"].as_array().unwrap() {
+        let file = img["file"].as_str().unwrap();
+        let row = rows
+            .iter()
+            .find(|r| file.ends_with(r["image"].as_str().unwrap()))
+            .unwrap();
+        let countable = row["leaf_pixels"]
+            .as_object()
+            .unwrap()
+            .values()
+            .filter(|a| a.as_u64().unwrap() >= 96)
+            .count();
+        assert_eq!(img["truth"].as_u64().unwrap() as usize, countable, "{file}");
+    }
+    for p in ["scatter.png", "error_histogram.png"] {
+        let img = image::open(plots.join(p)).unwrap();
+        assert!(img.width() > 300, "{p}");
+    }
+}
+
+#[test]
+fn evaluates_real_images_with_human_counts() {
+    let dev = dev_data().expect("development data beside the repo");
+    let (out, stdout, stderr) = run(phyllo()
+        .args(["eval", "--json", "--model"])
+        .arg(untrained_model())
+        .arg("--counts")
+        .arg(dev.join("leaf_tips.csv"))
+        .arg("--images")
+        .arg(dev.join("images")));
+    assert!(out.status.success(), "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(v["metrics"]["images"], 10);
+    assert!(v["per_view"]["SV_108"]["images"] == 10, "{v}");
+    let confusion_total: u64 = v["confusion"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r[2].as_u64().unwrap())
+        .sum();
+    assert_eq!(confusion_total, 10);
+}
