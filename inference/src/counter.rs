@@ -36,6 +36,11 @@ pub struct CounterConfig {
     pub batch_size: usize,
     /// How the plant's region is found.
     pub region: RegionMode,
+    /// Model pixels per image pixel; `None` applies the contract's scale rule
+    /// (frames to the contract's frame height, crops to its crop size). Set
+    /// 1.0 for images already at the contract's scale, such as phyllo-gen
+    /// dataset crops.
+    pub scale: Option<f32>,
     /// Post-processing parameters.
     pub postprocess: PostprocessParams,
     /// Decoder limits.
@@ -51,6 +56,7 @@ impl Default for CounterConfig {
             ort_spinning: false,
             batch_size: 4,
             region: RegionMode::Auto,
+            scale: None,
             postprocess: PostprocessParams::default(),
             limits: DecodeLimits::default(),
         }
@@ -162,7 +168,7 @@ impl Counter {
     pub fn analyse_image(&self, img: &RgbImage) -> Result<Analysis, InferenceError> {
         let c = self.contract;
         let t0 = Instant::now();
-        let canvas = prepare(c, img, self.config.region);
+        let canvas = prepare(c, img, self.config.region, self.config.scale);
         let tile_ms = ms(t0);
 
         let t1 = Instant::now();

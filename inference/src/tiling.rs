@@ -74,11 +74,12 @@ impl Canvas {
     }
 }
 
-/// Scales `img`, chooses the region to look at and lays out the tiles.
-pub fn prepare(contract: &Contract, img: &RgbImage, mode: RegionMode) -> Canvas {
+/// Scales `img` (by `scale`, or by the contract's rule when `None`), chooses
+/// the region to look at and lays out the tiles.
+pub fn prepare(contract: &Contract, img: &RgbImage, mode: RegionMode, scale: Option<f32>) -> Canvas {
     let tile = contract.input.tile;
     let stride = contract.outputs.stride;
-    let scale = scale_for(contract, img.width(), img.height());
+    let scale = scale.unwrap_or_else(|| scale_for(contract, img.width(), img.height()));
     let scaled = resize(img, scale);
     let (sw, sh) = scaled.dimensions();
 
@@ -260,7 +261,7 @@ mod tests {
                 img.put_pixel(x, y, image::Rgb([50, 120, 40]));
             }
         }
-        let canvas = prepare(c, &img, RegionMode::Auto);
+        let canvas = prepare(c, &img, RegionMode::Auto, None);
         assert_eq!(canvas.image.width() % 2, 0);
         assert!(canvas.image.width() >= 512 && canvas.image.height() >= 512);
         let [x0, y0, x1, y1] = canvas.region;
