@@ -19,12 +19,19 @@ const ORT_VERSION: &str = "1.31.1";
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
-    for var in ["PHYLLO_ORT_NO_FETCH", "PHYLLO_ORT_CACHE", "XDG_CACHE_HOME", "HOME"] {
+    for var in [
+        "PHYLLO_ORT_NO_FETCH",
+        "PHYLLO_ORT_CACHE",
+        "XDG_CACHE_HOME",
+        "HOME",
+    ] {
         println!("cargo:rerun-if-env-changed={var}");
     }
     println!("cargo:rustc-env=PHYLLO_ORT_VERSION={ORT_VERSION}");
 
-    if env::var_os("PHYLLO_ORT_NO_FETCH").is_some() || env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("linux") {
+    if env::var_os("PHYLLO_ORT_NO_FETCH").is_some()
+        || env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("linux")
+    {
         println!("cargo:rustc-env=PHYLLO_ORT_BUILD_LIB=");
         return;
     }
@@ -76,11 +83,15 @@ fn provision() -> Result<PathBuf, String> {
 }
 
 fn find_wheel(dir: &Path) -> Option<PathBuf> {
-    fs::read_dir(dir).ok()?.filter_map(Result::ok).map(|e| e.path()).find(|p| {
-        p.file_name()
-            .and_then(|n| n.to_str())
-            .is_some_and(|n| n.starts_with(&format!("onnxruntime-{ORT_VERSION}-")) && n.ends_with(".whl"))
-    })
+    fs::read_dir(dir)
+        .ok()?
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .find(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with(&format!("onnxruntime-{ORT_VERSION}-")) && n.ends_with(".whl"))
+        })
 }
 
 fn download_wheel(dir: &Path) -> Result<(), String> {
@@ -88,7 +99,14 @@ fn download_wheel(dir: &Path) -> Result<(), String> {
     let mut last_err = String::from("no python interpreter found");
     for python in ["python3", "python"] {
         let status = Command::new(python)
-            .args(["-m", "pip", "download", "--no-deps", "--only-binary=:all:", "--disable-pip-version-check"])
+            .args([
+                "-m",
+                "pip",
+                "download",
+                "--no-deps",
+                "--only-binary=:all:",
+                "--disable-pip-version-check",
+            ])
             .arg("--dest")
             .arg(dir)
             .arg(&spec)
@@ -114,7 +132,8 @@ fn extract_library(wheel: &Path, lib_name: &str, dest: &Path) -> Result<(), Stri
     let tmp = dest.with_extension(format!("partial.{}", std::process::id()));
     let mut out = fs::File::create(&tmp).map_err(|e| format!("create {}: {e}", tmp.display()))?;
     io::copy(&mut entry, &mut out).map_err(|e| format!("extract {member}: {e}"))?;
-    out.sync_all().map_err(|e| format!("sync {}: {e}", tmp.display()))?;
+    out.sync_all()
+        .map_err(|e| format!("sync {}: {e}", tmp.display()))?;
     fs::rename(&tmp, dest).map_err(|e| format!("rename into {}: {e}", dest.display()))?;
     Ok(())
 }

@@ -206,13 +206,13 @@ impl Contract {
         if self.input.layout != "NCHW" || self.input.dtype != "float32" || self.input.channels != "RGB" {
             return invalid("input must be NCHW float32 RGB".into());
         }
-        if self.outputs.stride == 0 || self.input.tile % self.outputs.stride != 0 {
+        if self.outputs.stride == 0 || !self.input.tile.is_multiple_of(self.outputs.stride) {
             return invalid("tile must be a multiple of the output stride".into());
         }
         if self.input.tile_overlap >= self.input.tile {
             return invalid("tile_overlap must be smaller than tile".into());
         }
-        if self.postprocess.nms_kernel % 2 == 0 {
+        if self.postprocess.nms_kernel.is_multiple_of(2) {
             return invalid("nms_kernel must be odd".into());
         }
         Ok(())

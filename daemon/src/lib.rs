@@ -1,7 +1,9 @@
 //! phyllo: the leaf-counting daemon and its operator commands.
 //!
-//! Data flows one way, each stage in its own module (sources → transforms →
-//! sinks, as in Vector; the service shape follows tokio's mini-redis):
+//! The inference core lives in the `phyllo-inference` crate and is re-exported
+//! here as [`inference`]. Data flows one way through this crate, each stage in
+//! its own module (sources → transforms → sinks, as in Vector; the service
+//! shape follows tokio's mini-redis):
 //!
 //! ```text
 //! source::watch / source::scan ─► source::intake (stability, dedupe) ─► bounded queue
@@ -10,6 +12,8 @@
 //! ```
 //!
 //! [`config`] is the TOML file; [`service`] wires the stages for `phyllo serve`.
+
+pub use phyllo_inference as inference;
 
 pub mod cli;
 pub mod config;

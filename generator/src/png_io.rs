@@ -26,9 +26,10 @@ pub fn rgb_png(img: &image::RgbImage) -> anyhow::Result<Vec<u8>> {
     encode_png(img.width(), img.height(), img.as_raw(), ExtendedColorType::Rgb8)
 }
 
-/// Encodes a 16-bit grey label (PNG stores 16-bit samples big-endian).
+/// Encodes a 16-bit grey label. The encoder takes native-endian samples and
+/// writes PNG's big-endian itself.
 pub fn label_png(label: &crate::label::LabelImage) -> anyhow::Result<Vec<u8>> {
-    let bytes: Vec<u8> = label.data.iter().flat_map(|v| v.to_be_bytes()).collect();
+    let bytes: Vec<u8> = label.data.iter().flat_map(|v| v.to_ne_bytes()).collect();
     encode_png(label.width, label.height, &bytes, ExtendedColorType::L16)
 }
 

@@ -82,7 +82,7 @@ impl PixelRng {
     }
     /// Next uniform float in `[0, 1)`.
     #[inline]
-    pub fn next(&mut self) -> f32 {
+    pub fn uniform01(&mut self) -> f32 {
         self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
         unit_from_bits(mix64(self.state))
     }
@@ -98,7 +98,7 @@ mod tests {
         assert_ne!(derive(1, "plant", 3), derive(1, "plant", 4));
         assert_ne!(derive(1, "plant", 3), derive(1, "look", 3));
         let mut r = PixelRng::new(5, 7, 0);
-        let x = r.next();
+        let x = r.uniform01();
         assert!((0.0..1.0).contains(&x));
     }
 }

@@ -16,7 +16,7 @@ pub const MIN_LEAVES: usize = 4;
 pub const MAX_LEAVES: usize = 13;
 
 /// Picks a preset for plant `index`, weighted by the presets' weights.
-pub fn pick_preset<'a>(presets: &'a [Preset], seed: u64, index: u64) -> &'a Preset {
+pub fn pick_preset(presets: &[Preset], seed: u64, index: u64) -> &Preset {
     if presets.len() == 1 {
         return &presets[0];
     }

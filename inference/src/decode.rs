@@ -25,7 +25,12 @@ pub struct DecodeLimits {
 
 impl Default for DecodeLimits {
     fn default() -> Self {
-        Self { max_side: 12_000, max_pixels: 40_000_000, min_side: 16, max_alloc_bytes: 512 << 20 }
+        Self {
+            max_side: 12_000,
+            max_pixels: 40_000_000,
+            min_side: 16,
+            max_alloc_bytes: 512 << 20,
+        }
     }
 }
 
@@ -42,11 +47,20 @@ pub fn decode_rgb(name: &Path, bytes: &[u8], limits: &DecodeLimits) -> Result<Rg
     let reader = ImageReader::new(Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| InferenceError::image(name, format!("cannot read: {e}")))?;
-    let format = reader.format().ok_or_else(|| {
-        InferenceError::image(name, "not a PNG, JPEG or TIFF image (unrecognised content)")
-    })?;
+    let format = reader
+        .format()
+        .ok_or_else(|| InferenceError::image(name, "not a PNG, JPEG or TIFF image (unrecognised content)"))?;
     if !matches!(format, ImageFormat::Png | ImageFormat::Jpeg | ImageFormat::Tiff) {
-        return Err(InferenceError::image(name, format!("{format:?} images are not supported (PNG, JPEG, TIFF)")));
+        return Err(InferenceError::image(
+            name,
+            format!("{format:?} images are not supported (PNG, JPEG, TIFF)"),
+        ));
+    }
+    if format == ImageFormat::Jpeg && !has_jpeg_end(bytes) {
+        return Err(InferenceError::image(
+            name,
+            "corrupt or truncated Jpeg: no end-of-image marker (file still being written?)",
+        ));
     }
     let (w, h) = reader
         .into_dimensions()
@@ -65,12 +79,28 @@ pub fn decode_rgb(name: &Path, bytes: &[u8], limits: &DecodeLimits) -> Result<Rg
     Ok(img.into_rgb8())
 }
 
+/// Whether a JPEG ends with its end-of-image marker (FF D9). Decoders fill a
+/// truncated JPEG with grey and report success, so a half-written file would
+/// otherwise be counted as data. Some cameras pad after the marker, so a
+/// short tail of padding is allowed.
+fn has_jpeg_end(bytes: &[u8]) -> bool {
+    let tail = &bytes[bytes.len().saturating_sub(4096)..];
+    let trimmed = tail
+        .iter()
+        .rposition(|&b| b != 0x00)
+        .map_or(&tail[..0], |i| &tail[..=i]);
+    trimmed.windows(2).rev().take(64).any(|w| w == [0xFF, 0xD9])
+}
+
 /// Refuses images that are too small to hold a plant or too large to be a camera frame.
 pub fn check_dimensions(name: &Path, w: u32, h: u32, limits: &DecodeLimits) -> Result<(), InferenceError> {
     if w < limits.min_side || h < limits.min_side {
         return Err(InferenceError::image(
             name,
-            format!("{w}x{h} is too small (each side must be at least {} px)", limits.min_side),
+            format!(
+                "{w}x{h} is too small (each side must be at least {} px)",
+                limits.min_side
+            ),
         ));
     }
     if w > limits.max_side || h > limits.max_side || u64::from(w) * u64::from(h) > limits.max_pixels {
@@ -91,18 +121,24 @@ mod tests {
 
     fn png_bytes(img: image::DynamicImage) -> Vec<u8> {
         let mut out = Vec::new();
-        img.write_to(&mut Cursor::new(&mut out), ImageFormat::Png).unwrap();
+        img.write_to(&mut Cursor::new(&mut out), ImageFormat::Png)
+            .unwrap();
         out
     }
 
     #[test]
     fn decodes_grey16_and_rgba_to_rgb8() {
         let lim = DecodeLimits::default();
-        let g16 = image::DynamicImage::ImageLuma16(image::ImageBuffer::from_pixel(32, 20, image::Luma([65535u16])));
+        let g16 =
+            image::DynamicImage::ImageLuma16(image::ImageBuffer::from_pixel(32, 20, image::Luma([65535u16])));
         let rgb = decode_rgb(Path::new("a.png"), &png_bytes(g16), &lim).unwrap();
         assert_eq!(rgb.dimensions(), (32, 20));
         assert_eq!(rgb.get_pixel(3, 3).0, [255, 255, 255]);
-        let rgba = image::DynamicImage::ImageRgba8(image::ImageBuffer::from_pixel(20, 20, image::Rgba([10, 200, 30, 0])));
+        let rgba = image::DynamicImage::ImageRgba8(image::ImageBuffer::from_pixel(
+            20,
+            20,
+            image::Rgba([10, 200, 30, 0]),
+        ));
         let rgb = decode_rgb(Path::new("b.png"), &png_bytes(rgba), &lim).unwrap();
         assert_eq!(rgb.get_pixel(0, 0).0, [10, 200, 30]);
     }
@@ -110,16 +146,35 @@ mod tests {
     #[test]
     fn refuses_empty_garbage_truncated_and_bombs_with_the_name() {
         let lim = DecodeLimits::default();
-        let e = decode_rgb(Path::new("empty.png"), &[], &lim).unwrap_err().to_string();
+        let e = decode_rgb(Path::new("empty.png"), &[], &lim)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("empty.png") && e.contains("empty"), "{e}");
-        let e = decode_rgb(Path::new("t.jpg"), b"hello, I am text", &lim).unwrap_err().to_string();
+        let e = decode_rgb(Path::new("t.jpg"), b"hello, I am text", &lim)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("t.jpg") && e.contains("not a PNG"), "{e}");
         let full = png_bytes(image::DynamicImage::new_rgb8(64, 64));
-        let e = decode_rgb(Path::new("cut.png"), &full[..full.len() / 2], &lim).unwrap_err().to_string();
+        let e = decode_rgb(Path::new("cut.png"), &full[..full.len() / 2], &lim)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("cut.png") && e.contains("corrupt or truncated"), "{e}");
-        let e = check_dimensions(Path::new("bomb.png"), 100_000, 100_000, &lim).unwrap_err().to_string();
+        let mut jpeg = Vec::new();
+        image::DynamicImage::new_rgb8(64, 64)
+            .write_to(&mut Cursor::new(&mut jpeg), ImageFormat::Jpeg)
+            .unwrap();
+        assert!(decode_rgb(Path::new("ok.jpg"), &jpeg, &lim).is_ok());
+        let e = decode_rgb(Path::new("half.jpg"), &jpeg[..jpeg.len() - 40], &lim)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("half.jpg") && e.contains("truncated"), "{e}");
+        let e = check_dimensions(Path::new("bomb.png"), 100_000, 100_000, &lim)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("decompression bomb"), "{e}");
-        let e = check_dimensions(Path::new("dot.png"), 1, 1, &lim).unwrap_err().to_string();
+        let e = check_dimensions(Path::new("dot.png"), 1, 1, &lim)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("too small"), "{e}");
     }
 }

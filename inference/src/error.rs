@@ -32,11 +32,17 @@ pub enum InferenceError {
 impl InferenceError {
     /// Builds an [`InferenceError::Image`] for `path`.
     pub fn image(path: impl Into<PathBuf>, reason: impl std::fmt::Display) -> Self {
-        Self::Image { path: path.into(), reason: reason.to_string() }
+        Self::Image {
+            path: path.into(),
+            reason: reason.to_string(),
+        }
     }
 
     /// Builds an [`InferenceError::Model`] for `path`.
     pub fn model(path: impl Into<PathBuf>, reason: impl std::fmt::Display) -> Self {
-        Self::Model { path: path.into(), reason: reason.to_string() }
+        Self::Model {
+            path: path.into(),
+            reason: reason.to_string(),
+        }
     }
 }

@@ -29,8 +29,8 @@ pub fn render(contract: &Contract, img: &RgbImage, analysis: &Analysis, untraine
         }
         let class = pan.segments[id as usize - 1].class;
         let colour = contract.mask_colour(class, id as u16);
-        for c in 0..3 {
-            p.0[c] = ((u16::from(p.0[c]) + 2 * u16::from(colour[c])) / 3) as u8;
+        for (v, col) in p.0.iter_mut().zip(colour) {
+            *v = ((u16::from(*v) + 2 * u16::from(col)) / 3) as u8;
         }
     }
     let mark = (img.width().max(img.height()) / 300).max(2) as i64;
@@ -68,7 +68,9 @@ fn text(img: &mut RgbImage, s: &str, x: u32, y: u32, scale: u32) {
         }
     }
     for (i, ch) in s.chars().enumerate() {
-        let Some(glyph) = font8x8::BASIC_FONTS.get(ch) else { continue };
+        let Some(glyph) = font8x8::BASIC_FONTS.get(ch) else {
+            continue;
+        };
         for (row, bits) in glyph.iter().enumerate() {
             for col in 0..8 {
                 if bits & (1 << col) == 0 {

@@ -135,7 +135,9 @@ pub fn find_centres(center: &Array2<f32>, params: &PostprocessParams) -> Vec<(us
             if v < params.center_threshold {
                 continue;
             }
-            let m = (a..b).map(|yy| row_max[yy * w + x]).fold(f32::NEG_INFINITY, f32::max);
+            let m = (a..b)
+                .map(|yy| row_max[yy * w + x])
+                .fold(f32::NEG_INFINITY, f32::max);
             if v < m {
                 continue;
             }
@@ -164,15 +166,23 @@ pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParam
     let off = out.offset.as_standard_layout();
     let off = off.as_slice().expect("standard layout");
 
-    // Semantic argmax and its softmax probability.
+    // Semantic argmax; the softmax probability of the winner is only needed
+    // on thing pixels (for instance scores), so only they pay for the exps.
     let mut semantic = vec![0u8; n];
     let mut prob = vec![0f32; n];
     for i in 0..n {
         let logits: [f32; NUM_CLASSES] = std::array::from_fn(|c| sem[c * n + i]);
-        let (best, &top) = logits.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).expect("4 classes");
-        let denom: f32 = logits.iter().map(|&l| (l - top).exp()).sum();
+        let mut best = 0;
+        for c in 1..NUM_CLASSES {
+            if logits[c] > logits[best] {
+                best = c;
+            }
+        }
         semantic[i] = best as u8;
-        prob[i] = 1.0 / denom;
+        if contract.is_thing(best as u8) {
+            let top = logits[best];
+            prob[i] = 1.0 / logits.iter().map(|&l| (l - top).exp()).sum::<f32>();
+        }
     }
 
     let centres = find_centres(&out.center, params);
@@ -211,8 +221,13 @@ pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParam
         bbox: [u32; 4],
         prob_sum: f32,
     }
-    let mut acc: Vec<Acc> =
-        (0..k).map(|_| Acc { area: 0, bbox: [u32::MAX, u32::MAX, 0, 0], prob_sum: 0.0 }).collect();
+    let mut acc: Vec<Acc> = (0..k)
+        .map(|_| Acc {
+            area: 0,
+            bbox: [u32::MAX, u32::MAX, 0, 0],
+            prob_sum: 0.0,
+        })
+        .collect();
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
@@ -224,7 +239,12 @@ pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParam
             a.area += 1;
             a.prob_sum += prob[i];
             let (x, y) = (x as u32, y as u32);
-            a.bbox = [a.bbox[0].min(x), a.bbox[1].min(y), a.bbox[2].max(x + 1), a.bbox[3].max(y + 1)];
+            a.bbox = [
+                a.bbox[0].min(x),
+                a.bbox[1].min(y),
+                a.bbox[2].max(x + 1),
+                a.bbox[3].max(y + 1),
+            ];
         }
     }
     // Keep instances above the minimum area; renumber densely in score order.
@@ -255,7 +275,13 @@ pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParam
     for v in instance.iter_mut() {
         *v = renumber[*v as usize];
     }
-    Panoptic { height: h, width: w, semantic, instance, segments }
+    Panoptic {
+        height: h,
+        width: w,
+        semantic,
+        instance,
+        segments,
+    }
 }
 
 #[cfg(test)]
@@ -263,7 +289,12 @@ mod tests {
     use super::*;
 
     fn params() -> PostprocessParams {
-        PostprocessParams { center_threshold: 0.1, nms_kernel: 7, top_k: 10, min_leaf_area: 1 }
+        PostprocessParams {
+            center_threshold: 0.1,
+            nms_kernel: 7,
+            top_k: 10,
+            min_leaf_area: 1,
+        }
     }
 
     #[test]

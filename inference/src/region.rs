@@ -32,26 +32,54 @@ pub enum RegionMode {
     },
 }
 
-/// Whether a pixel looks like plant tissue: green leaves by excess green,
-/// senescent leaves by a warm, saturated tint the white chamber never has.
+/// Per-channel median of `img`: the chamber's colour, since the plant covers
+/// a small part of every frame. Used as the white reference.
+pub fn median_colour(img: &RgbImage) -> [u8; 3] {
+    let mut hist = [[0u32; 256]; 3];
+    for p in img.pixels() {
+        for c in 0..3 {
+            hist[c][p.0[c] as usize] += 1;
+        }
+    }
+    let half = (img.width() * img.height()).div_ceil(2);
+    std::array::from_fn(|c| {
+        let mut acc = 0;
+        hist[c]
+            .iter()
+            .position(|&n| {
+                acc += n;
+                acc >= half
+            })
+            .unwrap_or(255) as u8
+    })
+}
+
+/// Whether a pixel looks like plant tissue once white-balanced against the
+/// chamber colour `white`: green leaves by green over red and blue, senescent
+/// leaves by a yellow-brown tint the chamber never has. White balancing first
+/// matters: real chambers are lit warm, and a fixed excess-green test then
+/// fires on the white wall and the translucent panels.
 #[inline]
-pub fn is_plant_pixel(p: [u8; 3]) -> bool {
-    let (r, g, b) = (i32::from(p[0]), i32::from(p[1]), i32::from(p[2]));
-    let excess_green = 2 * g - r - b;
-    let senescent = r - b > 60 && g - b > 35 && r + g < 420;
-    excess_green > 30 || senescent
+pub fn is_plant_pixel(p: [u8; 3], white: [u8; 3]) -> bool {
+    let n = |c: usize| f32::from(p[c]) / f32::from(white[c].max(1));
+    let (r, g, b) = (n(0), n(1), n(2));
+    let green = g - r.max(b) > 0.06;
+    let senescent = r - b > 0.25 && g - b > 0.15;
+    green || senescent
 }
 
 /// Bounding box `[x0, y0, x1, y1]` of the plant pixels of `img`, trimmed so
-/// that at most `trim` of the plant pixels fall outside it on each side, and
-/// grown by `margin` pixels. `None` when fewer than `min_pixels` look like plant.
+/// that at most `trim` of the plant pixels fall outside it on each side (stray
+/// colour fringes on the chamber's frames must not stretch it), grown by
+/// `margin` pixels. `None` when fewer than `min_pixels` look like plant.
 pub fn plant_bbox(img: &RgbImage, trim: f32, margin: u32, min_pixels: u32) -> Option<[u32; 4]> {
     let (w, h) = img.dimensions();
+    let white = median_colour(img);
     let mut cols = vec![0u32; w as usize];
     let mut rows = vec![0u32; h as usize];
     let mut total = 0u32;
     for (x, y, p) in img.enumerate_pixels() {
-        if is_plant_pixel(p.0) {
+        if is_plant_pixel(p.0, white) {
             cols[x as usize] += 1;
             rows[y as usize] += 1;
             total += 1;
@@ -63,7 +91,12 @@ pub fn plant_bbox(img: &RgbImage, trim: f32, margin: u32, min_pixels: u32) -> Op
     let cut = (total as f32 * trim) as u32;
     let (x0, x1) = trimmed_span(&cols, cut);
     let (y0, y1) = trimmed_span(&rows, cut);
-    Some([x0.saturating_sub(margin), y0.saturating_sub(margin), (x1 + margin).min(w), (y1 + margin).min(h)])
+    Some([
+        x0.saturating_sub(margin),
+        y0.saturating_sub(margin),
+        (x1 + margin).min(w),
+        (y1 + margin).min(h),
+    ])
 }
 
 /// The span `[lo, hi)` of a histogram after dropping up to `cut` counts from each end.
@@ -113,9 +146,14 @@ mod tests {
         let img = RgbImage::from_pixel(100, 100, image::Rgb([240, 240, 240]));
         assert_eq!(plant_bbox(&img, 0.005, 0, 10), None);
         // Black carrier and grey frames are not plant.
-        assert!(!is_plant_pixel([20, 20, 22]));
-        assert!(!is_plant_pixel([160, 165, 170]));
-        assert!(is_plant_pixel([70, 110, 50]));
-        assert!(is_plant_pixel([190, 160, 80]));
+        let warm_white = [251, 249, 226];
+        assert!(!is_plant_pixel([20, 20, 22], warm_white));
+        assert!(
+            !is_plant_pixel([168, 167, 141], warm_white),
+            "a panel lit warm is not plant"
+        );
+        assert!(!is_plant_pixel(warm_white, warm_white));
+        assert!(is_plant_pixel([70, 110, 50], warm_white));
+        assert!(is_plant_pixel([190, 160, 80], warm_white));
     }
 }

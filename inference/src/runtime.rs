@@ -39,16 +39,30 @@ pub fn candidates(explicit: Option<&Path>) -> Vec<PathBuf> {
             return vec![PathBuf::from(p)];
         }
     }
-    let names = ["libonnxruntime.so".to_string(), format!("libonnxruntime.so.{ORT_VERSION}")];
+    let names = [
+        "libonnxruntime.so".to_string(),
+        format!("libonnxruntime.so.{ORT_VERSION}"),
+    ];
     let mut dirs = Vec::new();
-    if let Some(exe_dir) = std::env::current_exe().ok().and_then(|e| e.parent().map(Path::to_path_buf)) {
+    if let Some(exe_dir) = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(Path::to_path_buf))
+    {
         dirs.push(exe_dir.join("../lib/phyllo"));
         dirs.push(exe_dir);
     }
-    for d in ["/usr/lib/phyllo", "/usr/local/lib", "/usr/lib/x86_64-linux-gnu", "/usr/lib"] {
+    for d in [
+        "/usr/lib/phyllo",
+        "/usr/local/lib",
+        "/usr/lib/x86_64-linux-gnu",
+        "/usr/lib",
+    ] {
         dirs.push(PathBuf::from(d));
     }
-    let mut out: Vec<PathBuf> = dirs.iter().flat_map(|d| names.iter().map(move |n| d.join(n))).collect();
+    let mut out: Vec<PathBuf> = dirs
+        .iter()
+        .flat_map(|d| names.iter().map(move |n| d.join(n)))
+        .collect();
     let built = env!("PHYLLO_ORT_BUILD_LIB");
     if !built.is_empty() {
         out.push(PathBuf::from(built));
@@ -67,7 +81,11 @@ pub fn locate(explicit: Option<&Path>) -> Result<PathBuf, InferenceError> {
         InferenceError::Runtime(format!(
             "libonnxruntime {ORT_VERSION} not found; set {ORT_LIB_ENV} or the config key `onnxruntime` \
              to its path (searched: {})",
-            cands.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+            cands
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
         ))
     })
 }
@@ -76,7 +94,9 @@ pub fn locate(explicit: Option<&Path>) -> Result<PathBuf, InferenceError> {
 ///
 /// A second call with another explicit path is refused: ONNX Runtime allows
 /// one library and one environment per process.
-pub fn environment(explicit: Option<&Path>) -> Result<&'static ort::environment::Environment, InferenceError> {
+pub fn environment(
+    explicit: Option<&Path>,
+) -> Result<&'static ort::environment::Environment, InferenceError> {
     let _guard = INIT_LOCK.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(loaded) = RUNTIME.get() {
         if let Some(p) = explicit {
@@ -92,12 +112,16 @@ pub fn environment(explicit: Option<&Path>) -> Result<&'static ort::environment:
     }
     let path = locate(explicit)?;
     if !path.exists() {
-        return Err(InferenceError::Runtime(format!("{}: no such file", path.display())));
+        return Err(InferenceError::Runtime(format!(
+            "{}: no such file",
+            path.display()
+        )));
     }
-    // `{:?}` keeps the dlopen reason (missing symbol, wrong ELF class, ...);
-    // ort's Display only says that dlopen failed.
+    // Both forms: `{:?}` keeps the dlopen reason (missing file, wrong ELF
+    // class, ...) that ort's Display drops; Display explains version and
+    // symbol problems in words.
     let builder = ort::init_from(&path)
-        .map_err(|e| InferenceError::Runtime(format!("cannot load {}: {e:?}", path.display())))?;
+        .map_err(|e| InferenceError::Runtime(format!("cannot load {}: {e} ({e:?})", path.display())))?;
     let env = builder
         .with_name("phyllo")
         .build()

@@ -25,9 +25,15 @@ pub struct TileOutputs {
 impl TileOutputs {
     /// Appends another batch's outputs.
     pub fn append(&mut self, other: TileOutputs) {
-        self.semantic.append(ndarray::Axis(0), other.semantic.view()).expect("same tile shape");
-        self.center.append(ndarray::Axis(0), other.center.view()).expect("same tile shape");
-        self.offset.append(ndarray::Axis(0), other.offset.view()).expect("same tile shape");
+        self.semantic
+            .append(ndarray::Axis(0), other.semantic.view())
+            .expect("same tile shape");
+        self.center
+            .append(ndarray::Axis(0), other.center.view())
+            .expect("same tile shape");
+        self.offset
+            .append(ndarray::Axis(0), other.offset.view())
+            .expect("same tile shape");
     }
 
     /// Number of tiles.
@@ -43,7 +49,13 @@ impl TileOutputs {
 
 /// Stitches `outputs` of tiles whose top-left corners are `tiles` (canvas
 /// pixels) into a canvas of `canvas_w` x `canvas_h` canvas pixels.
-pub fn stitch(outputs: &TileOutputs, tiles: &[[u32; 2]], canvas_w: u32, canvas_h: u32, stride: u32) -> RawOutputs {
+pub fn stitch(
+    outputs: &TileOutputs,
+    tiles: &[[u32; 2]],
+    canvas_w: u32,
+    canvas_h: u32,
+    stride: u32,
+) -> RawOutputs {
     let (n, classes, t, t2) = outputs.semantic.dim();
     assert_eq!(n, tiles.len(), "one output per tile");
     assert_eq!(t, t2, "square tiles");
@@ -51,6 +63,9 @@ pub fn stitch(outputs: &TileOutputs, tiles: &[[u32; 2]], canvas_w: u32, canvas_h
     let mut out = RawOutputs::zeros(h, w);
     debug_assert_eq!(classes, out.semantic.dim().0);
     let mut best = vec![-1i64; h * w];
+    // Which tile owns each canvas pixel: the one where it is farthest from an
+    // interior tile border.
+    let mut owner = vec![(u32::MAX, 0u32, 0u32); h * w];
     for (k, &[tx, ty]) in tiles.iter().enumerate() {
         let (ox, oy) = ((tx / stride) as usize, (ty / stride) as usize);
         let far = i64::MAX;
@@ -62,21 +77,52 @@ pub fn stitch(outputs: &TileOutputs, tiles: &[[u32; 2]], canvas_w: u32, canvas_h
                 let right = if ox + t < w { (t - 1 - j) as i64 } else { far };
                 let margin = top.min(bottom).min(left).min(right);
                 let g = (oy + i) * w + ox + j;
-                if margin <= best[g] {
-                    continue;
+                if margin > best[g] {
+                    best[g] = margin;
+                    owner[g] = (k as u32, i as u32, j as u32);
                 }
-                best[g] = margin;
-                let (gy, gx) = (oy + i, ox + j);
-                for c in 0..classes {
-                    out.semantic[[c, gy, gx]] = outputs.semantic[[k, c, i, j]];
-                }
-                out.center[[gy, gx]] = outputs.center[[k, 0, i, j]];
-                out.offset[[0, gy, gx]] = outputs.offset[[k, 0, i, j]];
-                out.offset[[1, gy, gx]] = outputs.offset[[k, 1, i, j]];
             }
         }
     }
+    // Copy plane by plane over contiguous slices: indexing four ndarray
+    // dimensions per pixel costs more than the post-processing itself.
+    for c in 0..classes {
+        let mut plane = out.semantic.index_axis_mut(ndarray::Axis(0), c);
+        copy_plane(
+            &outputs.semantic,
+            c,
+            &owner,
+            plane.as_slice_mut().expect("fresh array is contiguous"),
+        );
+    }
+    copy_plane(
+        &outputs.center,
+        0,
+        &owner,
+        out.center.as_slice_mut().expect("fresh array is contiguous"),
+    );
+    for c in 0..2 {
+        let mut plane = out.offset.index_axis_mut(ndarray::Axis(0), c);
+        copy_plane(
+            &outputs.offset,
+            c,
+            &owner,
+            plane.as_slice_mut().expect("fresh array is contiguous"),
+        );
+    }
     out
+}
+
+/// Copies channel `c` of the owning tile into each canvas pixel of `dst`.
+fn copy_plane(src: &Array4<f32>, c: usize, owner: &[(u32, u32, u32)], dst: &mut [f32]) {
+    let (_, channels, t, _) = src.dim();
+    let std = src.as_standard_layout();
+    let data = std.as_slice().expect("standard layout");
+    for (d, &(k, i, j)) in dst.iter_mut().zip(owner) {
+        if k != u32::MAX {
+            *d = data[((k as usize * channels + c) * t + i as usize) * t + j as usize];
+        }
+    }
 }
 
 /// Cuts the tile at `[tx, ty]` (canvas pixels) out of canvas-wide outputs:

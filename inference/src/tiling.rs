@@ -41,7 +41,9 @@ pub fn resize(img: &RgbImage, scale: f32) -> RgbImage {
         .expect("an RgbImage buffer is w*h*3 bytes");
     let mut dst = fr::images::Image::new(nw, nh, fr::PixelType::U8x3);
     let options = fr::ResizeOptions::new().resize_alg(fr::ResizeAlg::Convolution(fr::FilterType::Bilinear));
-    fr::Resizer::new().resize(&src, &mut dst, &options).expect("pixel types match");
+    fr::Resizer::new()
+        .resize(&src, &mut dst, &options)
+        .expect("pixel types match");
     RgbImage::from_raw(nw, nh, dst.into_vec()).expect("resizer output is nw*nh*3 bytes")
 }
 
@@ -65,7 +67,10 @@ pub struct Canvas {
 impl Canvas {
     /// Maps a canvas position (model pixels) to original-image pixels.
     pub fn to_original(&self, x: f32, y: f32) -> [f32; 2] {
-        [(x + self.origin[0] as f32) / self.scale, (y + self.origin[1] as f32) / self.scale]
+        [
+            (x + self.origin[0] as f32) / self.scale,
+            (y + self.origin[1] as f32) / self.scale,
+        ]
     }
 }
 
@@ -89,7 +94,7 @@ pub fn prepare(contract: &Contract, img: &RgbImage, mode: RegionMode) -> Canvas 
                 [0, 0, sw, sh]
             }
         }
-        RegionMode::Auto => plant_bbox(&scaled, 0.003, 12, 40).unwrap_or([0, 0, sw, sh]),
+        RegionMode::Auto => plant_bbox(&scaled, 0.02, 12, 40).unwrap_or([0, 0, sw, sh]),
     };
 
     // Grow the region to at least one tile per side, centred on the plant,
@@ -133,7 +138,13 @@ pub fn prepare(contract: &Contract, img: &RgbImage, mode: RegionMode) -> Canvas 
         to_orig(rx1, img.width()),
         to_orig(ry1, img.height()),
     ];
-    Canvas { image: canvas, scale, origin: [ox, oy], region, tiles }
+    Canvas {
+        image: canvas,
+        scale,
+        origin: [ox, oy],
+        region,
+        tiles,
+    }
 }
 
 /// Evenly spaced tile starts covering `len` with at least `overlap` between
@@ -253,7 +264,11 @@ mod tests {
         assert_eq!(canvas.image.width() % 2, 0);
         assert!(canvas.image.width() >= 512 && canvas.image.height() >= 512);
         let [x0, y0, x1, y1] = canvas.region;
-        assert!(x0 <= 1000 && x1 >= 1200 && y0 <= 800 && y1 >= 1600, "{:?}", canvas.region);
+        assert!(
+            x0 <= 1000 && x1 >= 1200 && y0 <= 800 && y1 >= 1600,
+            "{:?}",
+            canvas.region
+        );
         let [ox, oy] = canvas.to_original(0.0, 0.0);
         assert!(ox >= 0.0 && oy >= 0.0);
         let batch = batch_tensor(c, &canvas.image, &canvas.tiles);

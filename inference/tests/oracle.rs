@@ -20,7 +20,12 @@ struct Label {
 
 impl Label {
     fn new(w: usize, h: usize) -> Self {
-        Self { w, h, class: vec![0; w * h], inst: vec![0; w * h] }
+        Self {
+            w,
+            h,
+            class: vec![0; w * h],
+            inst: vec![0; w * h],
+        }
     }
 
     /// Paints a capsule (thick segment) from a to b.
@@ -70,8 +75,10 @@ fn perfect_outputs(c: &Contract, label: &Label) -> (RawOutputs, usize, usize, Ve
             }
         }
     }
-    let centres: BTreeMap<u16, (f32, f32)> =
-        sums.iter().map(|(&k, &(sy, sx, n))| (k, ((sy / n) as f32, (sx / n) as f32))).collect();
+    let centres: BTreeMap<u16, (f32, f32)> = sums
+        .iter()
+        .map(|(&k, &(sy, sx, n))| (k, ((sy / n) as f32, (sx / n) as f32)))
+        .collect();
     let mut semantic = Array3::from_elem((4, h, w), -5.0f32);
     let mut center = Array2::zeros((h, w));
     let mut offset = Array3::zeros((2, h, w));
@@ -92,7 +99,17 @@ fn perfect_outputs(c: &Contract, label: &Label) -> (RawOutputs, usize, usize, Ve
             }
         }
     }
-    (RawOutputs { semantic, center, offset }, w, h, class, inst)
+    (
+        RawOutputs {
+            semantic,
+            center,
+            offset,
+        },
+        w,
+        h,
+        class,
+        inst,
+    )
 }
 
 /// Runs the perfect outputs through tiling + stitching + post-processing and
@@ -110,7 +127,10 @@ fn round_trip(label: &Label) -> usize {
         outs.append(cut_tile(&full, tx, ty, s, t));
     }
     let stitched = stitch(&outs, &tiles, label.w as u32, label.h as u32, s);
-    let params = PostprocessParams { min_leaf_area: 1, ..PostprocessParams::default() };
+    let params = PostprocessParams {
+        min_leaf_area: 1,
+        ..PostprocessParams::default()
+    };
     let pan = panoptic(&stitched, c, &params);
     assert_eq!((pan.width, pan.height), (w, h));
 

@@ -58,23 +58,28 @@ def _rescale(img: Image.Image, lab: np.ndarray, f: float) -> tuple[Image.Image, 
     return img, lab[yi][:, xi]
 
 
-def _crop(img: np.ndarray, lab: np.ndarray, size: int, rng: np.random.Generator, fg_p: float) -> tuple[np.ndarray, np.ndarray]:
+def _pad_to(img: np.ndarray, lab: np.ndarray, size: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Pad to at least ``size`` per side with the edge colour (the chamber's wall) and background label."""
     h, w = lab.shape
-    if h < size or w < size:
-        # Pad with the edge colour (the chamber's wall) and background label.
-        ph, pw = max(0, size - h), max(0, size - w)
-        top, left = int(rng.integers(0, ph + 1)), int(rng.integers(0, pw + 1))
-        img = np.pad(img, ((top, ph - top), (left, pw - left), (0, 0)), mode="edge")
-        lab = np.pad(lab, ((top, ph - top), (left, pw - left)), mode="constant")
-        h, w = lab.shape
+    if h >= size and w >= size:
+        return img, lab
+    ph, pw = max(0, size - h), max(0, size - w)
+    top, left = int(rng.integers(0, ph + 1)), int(rng.integers(0, pw + 1))
+    img = np.pad(img, ((top, ph - top), (left, pw - left), (0, 0)), mode="edge")
+    lab = np.pad(lab, ((top, ph - top), (left, pw - left)), mode="constant")
+    return img, lab
+
+
+def _crop_origin(lab: np.ndarray, size: int, rng: np.random.Generator, fg_p: float) -> tuple[int, int]:
+    """Top-left of a ``size`` window; with probability ``fg_p`` it contains a random plant pixel."""
+    h, w = lab.shape
     if fg_p > 0 and rng.random() < fg_p and (lab > 0).any():
         ys, xs = np.nonzero(lab)
         k = int(rng.integers(0, len(ys)))
         y0 = int(np.clip(ys[k] - rng.integers(size // 4, 3 * size // 4 + 1), 0, h - size))
         x0 = int(np.clip(xs[k] - rng.integers(size // 4, 3 * size // 4 + 1), 0, w - size))
-    else:
-        y0, x0 = int(rng.integers(0, h - size + 1)), int(rng.integers(0, w - size + 1))
-    return img[y0:y0 + size, x0:x0 + size], lab[y0:y0 + size, x0:x0 + size]
+        return y0, x0
+    return int(rng.integers(0, h - size + 1)), int(rng.integers(0, w - size + 1))
 
 
 def _rgb_to_hsv_shift(x: np.ndarray, hue: float, sat: float) -> np.ndarray:
@@ -124,18 +129,26 @@ def photometric(img: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator) -
 
 
 def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
-            top_view: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Augment an RGB PIL image and its (H, W) label; returns (uint8 HxWx3, label) of the crop size."""
+            top_view: bool = False) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]]:
+    """Augment an RGB PIL image and its (H, W) label.
+
+    Returns ``(rgb, label, window)``: the uint8 crop (size x size x 3), the
+    *whole* geometrically transformed label, and the crop window
+    ``(y0, x0, h, w)`` within it. Targets are computed from the whole label so
+    that instances cut by the crop keep the centre of the whole instance, as
+    the daemon's tile stitching expects.
+    """
     lo, hi = cfg.scale
     if hi > lo:
         img, label = _rescale(img, label, float(np.exp(rng.uniform(np.log(lo), np.log(hi)))))
     arr = np.asarray(img.convert("RGB"))
-    if cfg.crop is not None:
-        arr, label = _crop(arr, label, cfg.crop, rng, cfg.fg_crop)
     if rng.random() < cfg.hflip:
         arr, label = arr[:, ::-1], label[:, ::-1]
     if top_view and cfg.rot90_top:
         k = int(rng.integers(0, 4))
         arr, label = np.rot90(arr, k), np.rot90(label, k)
-    arr = photometric(np.ascontiguousarray(arr), cfg, rng)
-    return arr, np.ascontiguousarray(label)
+    size = cfg.crop if cfg.crop is not None else min(label.shape)
+    arr, label = _pad_to(arr, label, size, rng)
+    y0, x0 = _crop_origin(label, size, rng, cfg.fg_crop)
+    arr = photometric(np.ascontiguousarray(arr[y0:y0 + size, x0:x0 + size]), cfg, rng)
+    return arr, np.ascontiguousarray(label), (y0, x0, size, size)

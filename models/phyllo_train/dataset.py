@@ -41,6 +41,16 @@ def read_label(path: str | Path) -> np.ndarray:
         return np.array(im, dtype=np.int32)
 
 
+def check_label_values(label: np.ndarray, contract: Contract, name: str) -> None:
+    """Refuse labels whose values cannot be class * divisor + instance (e.g. byte-swapped 16-bit PNGs)."""
+    top = int(label.max(initial=0))
+    if top >= contract.num_classes * contract.label_divisor:
+        swapped = int(np.asarray(label, np.uint16).byteswap().max())
+        hint = " (looks byte-swapped: PNG stores 16-bit samples big-endian)" if swapped < top else ""
+        raise ValueError(f"{name}: label value {top} is not class*{contract.label_divisor}+instance "
+                         f"with {contract.num_classes} classes{hint}")
+
+
 def normalise(rgb: np.ndarray, contract: Contract) -> np.ndarray:
     """uint8 HxWx3 RGB -> float32 3xHxW, pixel/255 then (x - mean) / std as the contract says."""
     x = rgb.astype(np.float32) / 255.0
@@ -85,14 +95,15 @@ class PanopticDataset(Dataset):
         with Image.open(self.root / row["image"]) as im:
             img = im.convert("RGB")
         label = read_label(self.root / row["label"])
+        check_label_values(label, self.contract, row["label"])
         if label.shape != (img.size[1], img.size[0]):
             raise ValueError(f"{row['label']}: shape {label.shape} differs from image {img.size[::-1]}")
         cfg = self.aug
         if cfg.crop is None:
             # Full tiles: crop back to the original size so H, W stay multiples of 32.
             cfg = AugmentConfig(**{**cfg.__dict__, "crop": min(label.shape) // 32 * 32})
-        rgb, label = augment(img, label, cfg, rng, top_view=is_top_view(row))
-        t = make_targets(label, self.contract)
+        rgb, label, window = augment(img, label, cfg, rng, top_view=is_top_view(row))
+        t = make_targets(label, self.contract, window=window)
         target = {
             "semantic": torch.from_numpy(t.semantic),
             "semantic_weight": torch.from_numpy(t.semantic_weight),

@@ -12,8 +12,12 @@ Conventions (shared with the Rust decoder, see models/MODEL.md):
   the centre rounded to the nearest output pixel, so every peak is exactly 1
   and sits on a pixel.
 
-Instances are whatever is visible in the given label (for a crop: the visible
-part), which is what a network that sees one tile can predict.
+Centres belong to the *whole* instance in the source image, not to the part
+visible in a crop: the daemon stitches tile outputs into one canvas and then
+decodes it once, so a leaf crossing a tile border must point to one centre
+from both tiles. In a crop, offsets may therefore point outside the crop, and
+the crop's heatmap holds only the (possibly partial) Gaussians of centres that
+lie in or near it.
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ class Targets:
     offset: np.ndarray          # (2, h, w) float32 (dy, dx) in output pixels
     offset_weight: np.ndarray   # (1, h, w) float32, 1 on thing pixels
     instances: np.ndarray       # (h, w) int32 panoptic id (class*divisor+inst) of thing pixels, else 0
-    centers: np.ndarray         # (K, 2) float32 continuous centres (y, x) of thing instances, output px
+    centers: np.ndarray         # (K, 2) float32 centres (y, x) of thing instances, output px of the crop (may lie outside)
 
 
 def downsample_label(label: np.ndarray, stride: int) -> np.ndarray:
@@ -71,22 +75,22 @@ def gaussian_heatmap(shape: tuple[int, int], centers: np.ndarray, sigma: float) 
     return heat
 
 
-def make_targets(label: np.ndarray, contract: Contract, *, small_area: int = 1024,
-                 small_weight: float = 3.0, thing_weight: float = 1.0) -> Targets:
+def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, int, int, int] | None = None,
+                 small_area: int = 1024, small_weight: float = 3.0) -> Targets:
     """Compute all targets from a (H, W) panoptic label (class*divisor + instance).
 
-    ``small_area`` (input pixels) and ``small_weight``: Panoptic-DeepLab up-weights
-    the semantic loss on small instances; young leaves are exactly those.
+    ``window`` = (y0, x0, h, w) in input pixels selects the crop the network
+    sees; instance centres are computed on the whole ``label``. ``small_area``
+    (input pixels, whole instance) and ``small_weight``: Panoptic-DeepLab
+    up-weights the semantic loss on small instances; young leaves are exactly those.
     """
     s, div = contract.stride, contract.label_divisor
-    label = label.astype(np.int64)
-    H, W = label.shape
-    h, w = H // s, W // s
-    cls_full = label // div
-    inst_full = label % div
-    things = np.isin(cls_full, contract.things) & (inst_full > 0)
+    label = np.asarray(label).astype(np.int64)
+    y0, x0, ch, cw = window if window is not None else (0, 0, *label.shape)
+    crop = label[y0:y0 + ch, x0:x0 + cw]
+    h, w = ch // s, cw // s
 
-    low = downsample_label(label, s)
+    low = downsample_label(crop, s)
     semantic = (low // div).astype(np.int64)
     semantic[semantic >= contract.num_classes] = 0  # unknown classes read as background
     low_things = np.isin(semantic, contract.things) & (low % div > 0)
@@ -97,29 +101,27 @@ def make_targets(label: np.ndarray, contract: Contract, *, small_area: int = 102
     off_w = low_things.astype(np.float32)[None]
     centers_int = []
     centers = []
+    things = np.isin(label // div, contract.things) & (label % div > 0)
     if things.any():
         ys, xs = np.nonzero(things)
-        ids = label[ys, xs]
-        uniq, inv = np.unique(ids, return_inverse=True)
+        uniq, inv = np.unique(label[ys, xs], return_inverse=True)
         area = np.bincount(inv).astype(np.float64)
-        cy_in = np.bincount(inv, weights=ys) / area
-        cx_in = np.bincount(inv, weights=xs) / area
-        # Input pixel-index coordinates -> output pixel-index coordinates.
-        cy = (cy_in - (s - 1) / 2.0) / s
-        cx = (cx_in - (s - 1) / 2.0) / s
+        # Centre of mass in whole-label input pixels -> output pixel coordinates of the crop.
+        cy = (np.bincount(inv, weights=ys) / area - y0 - (s - 1) / 2.0) / s
+        cx = (np.bincount(inv, weights=xs) / area - x0 - (s - 1) / 2.0) / s
         grid_y, grid_x = np.mgrid[0:h, 0:w].astype(np.float32)
         for k, pid in enumerate(uniq):
+            if area[k] < s * s:
+                continue  # a sliver smaller than one output pixel: no centre, it cannot be decoded
             m = instances == pid
-            if not m.any():
-                continue  # too small to survive at stride s: no centre either
-            offset[0][m] = cy[k] - grid_y[m]
-            offset[1][m] = cx[k] - grid_x[m]
-            if area[k] < small_area:
-                sem_w[m] = small_weight
-            elif thing_weight != 1.0:
-                sem_w[m] = thing_weight
+            if m.any():
+                offset[0][m] = cy[k] - grid_y[m]
+                offset[1][m] = cx[k] - grid_x[m]
+                if area[k] < small_area:
+                    sem_w[m] = small_weight
             centers.append((cy[k], cx[k]))
-            centers_int.append((int(np.clip(np.rint(cy[k]), 0, h - 1)), int(np.clip(np.rint(cx[k]), 0, w - 1))))
+            centers_int.append((int(np.rint(cy[k])), int(np.rint(cx[k]))))
+    # Gaussians whose centre lies outside the crop still contribute their visible tail.
     center = gaussian_heatmap((h, w), np.array(centers_int, dtype=np.int64).reshape(-1, 2), contract.center_sigma)
     return Targets(
         semantic=semantic,

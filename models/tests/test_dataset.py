@@ -55,3 +55,17 @@ def test_normalise_follows_contract(contract):
     px = np.full((2, 2, 3), 255, np.uint8)
     out = normalise(px, contract)
     np.testing.assert_allclose(out[:, 0, 0], [(1 - m) / s for m, s in zip(contract.mean, contract.std)], rtol=1e-6)
+
+
+def test_byte_swapped_labels_are_refused(tiny_dataset, contract, tmp_path):
+    import shutil
+
+    import pytest
+    from PIL import Image
+
+    bad = tmp_path / "swapped"
+    shutil.copytree(tiny_dataset, bad)
+    p = bad / "labels" / "0000.png"
+    Image.fromarray(np.array(Image.open(p)).astype(np.uint16).byteswap()).save(p)
+    with pytest.raises(ValueError, match="byte-swapped"):
+        PanopticDataset(bad, "train", AugmentConfig(crop=64), contract)[0]

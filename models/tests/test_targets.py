@@ -78,3 +78,20 @@ def test_losses_are_small_for_perfect_outputs(contract):
     rnd = torch.randn(1, 4, 32, 32)
     assert semantic_topk_ce(rnd, ts["semantic"], ts["semantic_weight"], 0.2) >= semantic_topk_ce(
         rnd, ts["semantic"], ts["semantic_weight"], 1.0)
+
+
+def test_crop_keeps_the_whole_instance_centre(contract):
+    """A leaf cut by the crop window points to the centre of the whole leaf, outside the crop."""
+    lab = np.zeros((64, 128), np.int32)
+    lab[30:34, 10:110] = 1001  # centre of mass (31.5, 59.5)
+    win = (0, 64, 64, 64)      # right half only
+    t = make_targets(lab, contract, window=win)
+    cy, cx = (31.5 - 0.5) / 2, (59.5 - 64 - 0.5) / 2  # -2.5: left of the crop
+    np.testing.assert_allclose(t.centers, [[cy, cx]], atol=1e-5)
+    ys, xs = np.nonzero(t.offset_weight[0])
+    np.testing.assert_allclose(xs + t.offset[1, ys, xs], cx, atol=1e-5)
+    # Only the visible tail of the Gaussian: its peak lies 2.5 px left of the crop.
+    assert 0.5 < t.center.max() < 1.0
+    # The same leaf seen through the other half of the image agrees on where its centre is.
+    t2 = make_targets(lab, contract, window=(0, 0, 64, 64))
+    np.testing.assert_allclose(t2.centers[0, 1] - 32, cx, atol=1e-5)

@@ -125,7 +125,7 @@ impl Chamber {
     /// view, whose camera looks in through the ceiling.
     pub fn new(look: &Look, with_ceiling: bool) -> Self {
         let tint = look.light_tint;
-        let metal = [0.35, 0.35, 0.36];
+        let metal = [0.62, 0.62, 0.6];
         let dark = [0.025, 0.025, 0.02];
         let (y0, y1, w) = (FLOOR_Y, CEILING_Y, HALF_WIDTH);
         let mut rects = vec![
@@ -279,6 +279,15 @@ impl Chamber {
             Some(Finish::Matte(a)) => mul(a, self.ambient),
             None => self.outside,
         }
+    }
+
+    /// Radiance of a prop (pot, soil, carrier) with albedo `albedo` and
+    /// normal `n`: ambient light with a soft top-lit gradient. Props are
+    /// shaded without sampling so the white pot is as smooth as in real
+    /// frames; the plant's faint shadow on it is not modelled.
+    #[inline]
+    pub fn prop_radiance(&self, albedo: Vec3, n: Vec3) -> Vec3 {
+        albedo * Vec3::from(self.ambient) * (1.05 + 0.15 * n.y)
     }
 
     /// Picks a light with probability `pdf` from a uniform number.

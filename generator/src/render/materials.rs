@@ -117,6 +117,13 @@ impl Materials {
         }
     }
 
+    /// Whether material `id` is a prop shaded by ambient light only.
+    #[inline]
+    pub fn is_prop(id: u16) -> bool {
+        use crate::render::chamber::materials as cm;
+        matches!(id, cm::POT | cm::SOIL | cm::CARRIER)
+    }
+
     /// Scattering of material `id` at senescence `s`.
     #[inline]
     pub fn bsdf(&self, id: u16, s: f32) -> Bsdf {

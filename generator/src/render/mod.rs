@@ -249,7 +249,11 @@ pub fn render(
                 for s in 0..spp {
                     let mut r = PixelRng::new(seed, key, s);
                     // Sample 0 goes through the pixel centre: that ray is the label.
-                    let (jx, jy) = if s == 0 { (0.5, 0.5) } else { (r.next(), r.next()) };
+                    let (jx, jy) = if s == 0 {
+                        (0.5, 0.5)
+                    } else {
+                        (r.uniform01(), r.uniform01())
+                    };
                     let d = camera.direction(fx as f32 + jx, fy as f32 + jy);
                     let out = integrator::trace(scene, camera.position, d, &mut r, quality.max_depth);
                     if s == 0 {
@@ -258,7 +262,7 @@ pub fn render(
                     acc += out.radiance;
                     rays += u64::from(out.rays);
                 }
-                let mut r = PixelRng::new(seed ^ 0x5eed_0f_9015e, key, 0);
+                let mut r = PixelRng::new(seed ^ 0x05ee_d0f9_015e, key, 0);
                 let noise = [gauss(&mut r), gauss(&mut r), gauss(&mut r)];
                 row[x * 3..x * 3 + 3].copy_from_slice(&film::develop(acc / spp as f32, look, noise));
             }
@@ -282,8 +286,8 @@ pub fn render(
 
 #[inline]
 fn gauss(r: &mut PixelRng) -> f32 {
-    let u1 = r.next().max(1e-7);
-    let u2 = r.next();
+    let u1 = r.uniform01().max(1e-7);
+    let u2 = r.uniform01();
     (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
 }
 

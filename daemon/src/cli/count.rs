@@ -1,0 +1,116 @@
+//! `phyllo count`: count leaves in image files, one result per file.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::Context;
+use phyllo_contract::Contract;
+use phyllo_inference::{overlay, Counter, InferenceError};
+use serde_json::json;
+
+use super::counter_args::CounterArgs;
+
+/// Arguments of `phyllo count`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Model and runtime options.
+    #[command(flatten)]
+    pub counter: CounterArgs,
+    /// One JSON object per input on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Write an overlay PNG per image into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub overlay: Option<PathBuf>,
+    /// Image files (PNG, JPEG, TIFF).
+    #[arg(required = true, value_name = "IMAGE")]
+    pub images: Vec<PathBuf>,
+}
+
+/// Counts every image; a failed image is reported and the others still run.
+/// Exit status 1 if any image failed.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let counter = Counter::new(args.counter.config()?)?;
+    let info = counter.model_info();
+    if !info.trained {
+        eprintln!(
+            "phyllo: warning: model {} is UNTRAINED (phyllo.trained != true): counts are meaningless",
+            info.path.display()
+        );
+    }
+    if let Some(dir) = &args.overlay {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create overlay directory {}", dir.display()))?;
+    }
+    let model_id = counter.model_id();
+    let mut failed = 0usize;
+    let stdout = std::io::stdout();
+    for path in &args.images {
+        let outcome = count_one(&counter, path, args.overlay.as_deref());
+        let mut out = stdout.lock();
+        match outcome {
+            Ok(r) => {
+                if args.json {
+                    let mut v = serde_json::to_value(&r)?;
+                    v["file"] = json!(path);
+                    v["model"] = json!(model_id);
+                    writeln!(out, "{v}")?;
+                } else {
+                    writeln!(
+                        out,
+                        "{}\t{} leaves\t({} tiles, {:.0} ms)",
+                        path.display(),
+                        r.leaf_count,
+                        r.tiles,
+                        r.ms.total
+                    )?;
+                }
+            }
+            Err(e) => {
+                failed += 1;
+                if args.json {
+                    writeln!(out, "{}", json!({"file": path, "error": e.to_string()}))?;
+                } else {
+                    drop(out);
+                    eprintln!("phyllo: {e}");
+                }
+            }
+        }
+    }
+    Ok(if failed > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
+fn count_one(
+    counter: &Counter,
+    path: &Path,
+    overlay_dir: Option<&Path>,
+) -> Result<phyllo_inference::CountResult, InferenceError> {
+    if path.is_dir() {
+        return Err(InferenceError::image(path, "is a directory, not an image file"));
+    }
+    let bytes = std::fs::read(path).map_err(|e| InferenceError::image(path, format!("cannot read: {e}")))?;
+    let analysis = counter.analyse_bytes(path, &bytes)?;
+    if let Some(dir) = overlay_dir {
+        let img = phyllo_inference::decode::decode_rgb(path, &bytes, &counter.config().limits)?;
+        let drawn = overlay::render(
+            Contract::embedded(),
+            &img,
+            &analysis,
+            !counter.model_info().trained,
+        );
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "image".into());
+        let out = dir.join(format!("{stem}.overlay.png"));
+        drawn
+            .save(&out)
+            .map_err(|e| InferenceError::image(&out, format!("cannot write overlay: {e}")))?;
+    }
+    Ok(analysis.result)
+}

@@ -1,0 +1,411 @@
+//! End-to-end checks of phyllo-gen: determinism, sharding, resumability,
+//! label consistency and error reporting.
+
+use phyllo_contract::{Contract, LEAF};
+use phyllo_gen::dataset::{self, DatasetArgs, Row};
+use phyllo_gen::plant::{growth::PlantTraits, preset::Preset, Plant};
+use phyllo_gen::render::{self, look::Look, Quality, Scene, Stage, View, Window};
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+use std::process::Command;
+
+fn stage_for(preset: &str, seed: u64, age: f32, look: &Look) -> (Plant, Stage) {
+    let preset = Preset::load(preset).unwrap();
+    let plant = Plant::build(&PlantTraits::sample(&preset, seed), age);
+    let stage = Stage::new(&plant, &preset.colour, [0.3, 0.3, 0.1], look);
+    (plant, stage)
+}
+
+fn render_with_threads(threads: usize) -> (Vec<u8>, Vec<u16>) {
+    let look = Look::randomised(7);
+    let (_, stage) = stage_for("btx623", 3, 30.0, &look);
+    let scene = Scene::new(&stage, &look, View::Side(36.0));
+    let camera = render::camera_for(View::Side(36.0), &look, 514);
+    let window = Window {
+        x0: 200,
+        y0: 250,
+        width: 96,
+        height: 80,
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    let out =
+        pool.install(|| render::render(&scene, &camera, &look, window, Quality::default(), 99).unwrap());
+    (out.rgb.into_raw(), out.label.data)
+}
+
+#[test]
+fn same_seed_same_bytes_for_any_thread_count() {
+    let one = render_with_threads(1);
+    let three = render_with_threads(3);
+    assert!(one == three, "render differs between 1 and 3 threads");
+}
+
+fn args(out: &Path, shard: (u64, u64)) -> DatasetArgs {
+    DatasetArgs {
+        out: out.to_path_buf(),
+        plants: 4,
+        seed: 11,
+        views: vec![View::Side(108.0), View::Top],
+        size: 64,
+        val_fraction: 0.5,
+        presets: vec![Preset::load("btx623").unwrap(), Preset::load("maize").unwrap()],
+        shard,
+        quality: Quality { spp: 1, max_depth: 2 },
+        masks: false,
+        quiet: true,
+    }
+}
+
+fn read_rows(path: &Path) -> Vec<Row> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn shard_union_equals_unsharded_run_and_rerun_is_a_no_op() {
+    let whole = tempfile::tempdir().unwrap();
+    let parts = tempfile::tempdir().unwrap();
+    dataset::run(&args(whole.path(), (0, 1))).unwrap();
+    dataset::run(&args(parts.path(), (0, 2))).unwrap();
+    dataset::run(&args(parts.path(), (1, 2))).unwrap();
+    let all = read_rows(&whole.path().join("manifest.jsonl"));
+    assert_eq!(all.len(), 8);
+    let mut union = read_rows(&parts.path().join("manifest.shard-0-of-2.jsonl"));
+    union.extend(read_rows(&parts.path().join("manifest.shard-1-of-2.jsonl")));
+    union.sort_by_key(|r| (r.plant, r.view.clone()));
+    let mut sorted = all.clone();
+    sorted.sort_by_key(|r| (r.plant, r.view.clone()));
+    assert_eq!(union, sorted);
+    for r in &all {
+        for f in [&r.image, &r.label] {
+            let a = std::fs::read(whole.path().join(f)).unwrap();
+            let b = std::fs::read(parts.path().join(f)).unwrap();
+            assert!(a == b, "{f} differs between sharded and unsharded runs");
+        }
+    }
+    // Resuming: nothing is re-rendered, the manifest is rebuilt identically.
+    let img = whole.path().join(&all[0].image);
+    let before = std::fs::metadata(&img).unwrap().modified().unwrap();
+    dataset::run(&args(whole.path(), (0, 1))).unwrap();
+    assert_eq!(std::fs::metadata(&img).unwrap().modified().unwrap(), before);
+    assert_eq!(read_rows(&whole.path().join("manifest.jsonl")), all);
+    // A crashed item (meta record missing) is redone.
+    std::fs::remove_file(whole.path().join("meta/p000001_top.json")).unwrap();
+    dataset::run(&args(whole.path(), (0, 1))).unwrap();
+    assert_eq!(read_rows(&whole.path().join("manifest.jsonl")), all);
+    for r in &all {
+        assert!(r.split == "train" || r.split == "val");
+        assert!(r.leaf_count >= r.visible_leaf_count);
+    }
+}
+
+#[test]
+fn manifest_counts_match_labels_on_disk() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut a = args(dir.path(), (0, 1));
+    a.size = 512;
+    a.plants = 2;
+    a.views = vec![View::Side(0.0), View::Side(108.0), View::Top];
+    dataset::run(&a).unwrap();
+    let c = Contract::embedded();
+    for r in read_rows(&dir.path().join("manifest.jsonl")) {
+        let label = image::open(dir.path().join(&r.label)).unwrap().into_luma16();
+        assert_eq!(label.dimensions(), (512, 512));
+        let mut leaves = BTreeMap::new();
+        for p in label.pixels() {
+            let (class, inst) = c.decode_label(p.0[0]);
+            assert!(class <= 3, "bad class {class}");
+            if class == LEAF {
+                assert!(
+                    inst >= 1 && usize::from(inst) <= r.leaf_count,
+                    "leaf instance {inst} of {}",
+                    r.leaf_count
+                );
+                *leaves.entry(inst).or_insert(0u32) += 1;
+            }
+        }
+        assert_eq!(leaves.len(), r.visible_leaf_count, "{}", r.label);
+        assert_eq!(leaves, r.leaf_pixels);
+    }
+}
+
+#[test]
+fn every_leaf_facing_the_camera_appears_in_the_label() {
+    // A side view with all leaves present: at the 0° view of a plant whose
+    // leaves spread left and right, each blade's tip region is unoccluded by
+    // construction in at least one of the five side views.
+    let look = Look::facility();
+    let (plant, stage) = stage_for("btx623", 5, 35.0, &look);
+    let mut seen = BTreeSet::new();
+    for a in [0.0, 36.0, 72.0, 108.0, 144.0] {
+        let view = View::Side(a);
+        let scene = Scene::new(&stage, &look, view);
+        let camera = render::camera_for(view, &look, 514);
+        let window = Window {
+            x0: 0,
+            y0: 0,
+            width: camera.width,
+            height: camera.height,
+        };
+        let out = render::render(
+            &scene,
+            &camera,
+            &look,
+            window,
+            Quality { spp: 1, max_depth: 1 },
+            1,
+        )
+        .unwrap();
+        seen.extend(out.label.leaf_pixels().into_keys());
+    }
+    let all: BTreeSet<u16> = (1..=plant.leaf_count() as u16).collect();
+    assert_eq!(seen, all, "some leaf never appears in any side view");
+}
+
+#[test]
+fn label_and_rgb_are_registered() {
+    // With one sample per pixel the RGB pixel is traced along the label's
+    // own ray. Render the plant and the same chamber without it: every
+    // labelled plant pixel must differ from the empty chamber, and every
+    // chamber pixel away from the pot must be identical.
+    let mut look = Look::facility();
+    look.noise_sd = 0.0;
+    let (plant, stage) = stage_for("btx623", 2, 40.0, &look);
+    let mut empty = plant.clone();
+    empty.mesh = phyllo_gen::mesh::Mesh::default();
+    let preset = Preset::load("btx623").unwrap();
+    let empty_stage = Stage::new(&empty, &preset.colour, [0.3, 0.3, 0.1], &look);
+    let view = View::Side(0.0);
+    let camera = render::camera_for(view, &look, 514);
+    let window = Window {
+        x0: 0,
+        y0: 0,
+        width: camera.width,
+        height: camera.height,
+    };
+    let q = Quality { spp: 1, max_depth: 2 };
+    let with = render::render(&Scene::new(&stage, &look, view), &camera, &look, window, q, 5).unwrap();
+    let without = render::render(
+        &Scene::new(&empty_stage, &look, view),
+        &camera,
+        &look,
+        window,
+        q,
+        5,
+    )
+    .unwrap();
+    let pot_top = camera.project(glam::Vec3::new(0.0, 0.02, 0.0)).unwrap().1;
+    let (mut plant_px, mut differs, mut chamber_px, mut same) = (0, 0, 0, 0);
+    for (y, ((a, b), &v)) in with
+        .rgb
+        .pixels()
+        .zip(without.rgb.pixels())
+        .zip(&with.label.data)
+        .enumerate()
+        .map(|(i, x)| (i / window.width as usize, x))
+    {
+        if v != 0 {
+            plant_px += 1;
+            differs += usize::from(a != b);
+        } else if (y as f32) < pot_top {
+            chamber_px += 1;
+            same += usize::from(a == b);
+        }
+    }
+    assert!(plant_px > 500, "plant too small to test: {plant_px}");
+    assert_eq!(same, chamber_px, "chamber pixels changed by the plant");
+    assert!(
+        differs as f32 > 0.995 * plant_px as f32,
+        "{differs} of {plant_px} plant pixels differ from the empty chamber"
+    );
+}
+
+#[test]
+fn labelled_plant_pixels_are_plant_coloured() {
+    // At training quality, plant pixels are darker than the chamber and not
+    // bluish (anti-aliased edges of thin parts may mix with the wall).
+    let look = Look::facility();
+    let (_, stage) = stage_for("btx623", 2, 40.0, &look);
+    let view = View::Side(0.0);
+    let scene = Scene::new(&stage, &look, view);
+    let camera = render::camera_for(view, &look, 514);
+    let window = Window {
+        x0: 0,
+        y0: 0,
+        width: camera.width,
+        height: camera.height,
+    };
+    let out = render::render(&scene, &camera, &look, window, Quality::default(), 5).unwrap();
+    let (mut plant_px, mut green) = (0, 0);
+    for (p, &v) in out.rgb.pixels().zip(&out.label.data) {
+        let [r, g, b] = p.0.map(i32::from);
+        if v != 0 {
+            plant_px += 1;
+            green += usize::from(r + g + b < 600 && g + 4 >= b);
+        }
+    }
+    assert!(
+        green as f32 > 0.95 * plant_px as f32,
+        "{green} of {plant_px} plant pixels look like plant"
+    );
+}
+
+fn run_cli(args: &[&str]) -> (i32, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_phyllo-gen"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn bad_arguments_and_presets_give_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("d");
+    let out = out.to_str().unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &[
+                "dataset", "--out", out, "--plants", "1", "--seed", "1", "--shard", "2/2",
+            ],
+            "--shard",
+        ),
+        (
+            &[
+                "dataset", "--out", out, "--plants", "1", "--seed", "1", "--views", "0,400",
+            ],
+            "400",
+        ),
+        (
+            &[
+                "dataset", "--out", out, "--plants", "1", "--seed", "1", "--views", "side",
+            ],
+            "--views",
+        ),
+        (
+            &[
+                "dataset",
+                "--out",
+                out,
+                "--plants",
+                "1",
+                "--seed",
+                "1",
+                "--val-fraction",
+                "1.5",
+            ],
+            "--val-fraction",
+        ),
+        (
+            &[
+                "dataset", "--out", out, "--plants", "1", "--seed", "1", "--preset", "nosuch",
+            ],
+            "unknown preset",
+        ),
+        (
+            &["dataset", "--out", out, "--plants", "0", "--seed", "1"],
+            "--plants",
+        ),
+        (
+            &[
+                "sequence",
+                "--out",
+                out,
+                "--plants",
+                "1",
+                "--days",
+                "1",
+                "--seed",
+                "1",
+                "--start-date",
+                "2019-02-30",
+            ],
+            "--start-date",
+        ),
+        (
+            &["dataset", "--out", out, "--plants", "x", "--seed", "1"],
+            "--plants",
+        ),
+    ];
+    for (args, needle) in cases {
+        let (code, err) = run_cli(args);
+        assert_ne!(code, 0, "{args:?} should fail");
+        assert!(
+            err.contains(needle),
+            "{args:?}: error should mention {needle:?}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    }
+    let bad = dir.path().join("bad.toml");
+    let text = include_str!("../presets/btx623.toml")
+        .replace("width_ratio = [0.075, 0.095]", "width_ratio = [0.095, 0.075]");
+    std::fs::write(&bad, text).unwrap();
+    let (code, err) = run_cli(&["presets", bad.to_str().unwrap()]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("bad.toml") && err.contains("leaf.width_ratio") && err.contains("lower bound"),
+        "{err}"
+    );
+    std::fs::write(&bad, "name = ").unwrap();
+    let (code, err) = run_cli(&["presets", bad.to_str().unwrap()]);
+    assert_ne!(code, 0);
+    assert!(err.contains("bad.toml") && !err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn obj_export_has_one_group_per_leaf() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("p.obj");
+    let (code, err) = run_cli(&[
+        "mesh",
+        "--preset",
+        "sc301",
+        "--age",
+        "42",
+        "--out",
+        obj.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(obj).unwrap();
+    let leaves = text.lines().filter(|l| l.starts_with("g leaf_")).count();
+    let preset = Preset::load("sc301").unwrap();
+    let plant = Plant::build(&PlantTraits::sample(&preset, 1), 42.0);
+    assert_eq!(leaves, plant.leaf_count());
+    assert!((4..=13).contains(&leaves));
+}
+
+#[test]
+fn dataset_plants_span_the_papers_ranges() {
+    let presets = Preset::builtins().unwrap();
+    let mut ages = Vec::new();
+    for i in 0..60 {
+        let plan = dataset::plan_plant(&presets, 3, i);
+        let n = plan.traits.living_on(plan.age);
+        assert!((4..=13).contains(&n), "plant {i}: {n} leaves at {} d", plan.age);
+        assert!((7.0..=56.0).contains(&plan.age));
+        ages.push(plan.age);
+        let plant = Plant::build(&plan.traits, plan.age);
+        assert_eq!(plant.leaf_count(), n);
+        let per_leaf = plant
+            .mesh
+            .groups
+            .iter()
+            .filter(|g| g.name.starts_with("leaf_"))
+            .map(|g| g.end - g.start)
+            .min()
+            .unwrap();
+        assert!(per_leaf >= 128 * 2, "a leaf has only {per_leaf} triangles");
+    }
+    let spread =
+        ages.iter().cloned().fold(f32::MIN, f32::max) - ages.iter().cloned().fold(f32::MAX, f32::min);
+    assert!(spread > 20.0, "ages should spread over weeks: {spread}");
+}

@@ -1,0 +1,222 @@
+//! `phyllo count` end to end: the real binary, real ONNX Runtime, real images.
+
+use std::path::{Path, PathBuf};
+
+use phyllo_e2e::{dev_data, phyllo, run, untrained_model};
+use serde_json::Value;
+
+fn json_lines(stdout: &str) -> Vec<Value> {
+    stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("bad JSON line {l:?}: {e}")))
+        .collect()
+}
+
+fn dev_images(sub: &str, n: usize) -> Vec<PathBuf> {
+    let Some(dir) = dev_data() else {
+        panic!("development data not found: expected ../shared/data/unl-maize-dev beside the repo or PHYLLO_DEV_DATA");
+    };
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir.join(sub))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    v.sort();
+    v.truncate(n);
+    v
+}
+
+#[test]
+fn counts_real_frames_and_crops_as_json() {
+    let mut files = dev_images("images", 3);
+    files.extend(dev_images("crops", 3));
+    let (out, stdout, stderr) = run(phyllo()
+        .arg("count")
+        .arg("--json")
+        .arg("--model")
+        .arg(untrained_model())
+        .args(&files));
+    assert!(out.status.success(), "stderr: {stderr}");
+    assert!(
+        stderr.contains("UNTRAINED"),
+        "an untrained model must be flagged: {stderr}"
+    );
+    let lines = json_lines(&stdout);
+    assert_eq!(lines.len(), files.len());
+    for (v, f) in lines.iter().zip(&files) {
+        assert_eq!(v["file"].as_str().unwrap(), f.to_str().unwrap());
+        assert!(v["leaf_count"].as_u64().is_some(), "{v}");
+        assert!(v["instances"].is_array());
+        assert!(v["tiles"].as_u64().unwrap() >= 1);
+        for stage in ["decode", "tile", "inference", "postprocess", "total"] {
+            assert!(v["ms"][stage].as_f64().unwrap() >= 0.0, "{stage} in {v}");
+        }
+        let n_leaves = v["instances"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|i| i["class"] == 1)
+            .count();
+        assert_eq!(n_leaves as u64, v["leaf_count"].as_u64().unwrap());
+        assert!(v["model"].as_str().unwrap().contains('@'));
+    }
+    // Full frames are recognised by aspect ratio and crops are not.
+    assert_eq!(lines[0]["image_size"], serde_json::json!([1227, 1028]));
+}
+
+#[test]
+fn bad_inputs_give_error_lines_and_the_others_still_count() {
+    let tmp = tempfile::tempdir().unwrap();
+    let good = dev_images("crops", 1).remove(0);
+    let empty = tmp.path().join("empty.png");
+    std::fs::write(&empty, b"").unwrap();
+    let text = tmp.path().join("notes.jpg");
+    std::fs::write(&text, b"plant 12 had 7 leaves\n").unwrap();
+    let truncated = tmp.path().join("truncated.jpg");
+    let bytes = std::fs::read(&good).unwrap();
+    std::fs::write(&truncated, &bytes[..bytes.len() / 3]).unwrap();
+    let dir = tmp.path().join("folder.png");
+    std::fs::create_dir(&dir).unwrap();
+    let missing = tmp.path().join("missing.png");
+    let files = [
+        empty.clone(),
+        good.clone(),
+        text.clone(),
+        truncated.clone(),
+        dir.clone(),
+        missing.clone(),
+    ];
+    let (out, stdout, _) = run(phyllo()
+        .arg("count")
+        .arg("--json")
+        .arg("--model")
+        .arg(untrained_model())
+        .args(&files));
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "any failed input makes the exit status non-zero"
+    );
+    let lines = json_lines(&stdout);
+    assert_eq!(lines.len(), files.len());
+    let expect = [
+        (&empty, "empty"),
+        (&text, "not a PNG, JPEG or TIFF"),
+        (&truncated, "corrupt or truncated"),
+        (&dir, "directory"),
+        (&missing, "cannot read"),
+    ];
+    for (path, why) in expect {
+        let v = lines
+            .iter()
+            .find(|v| v["file"].as_str() == path.to_str())
+            .unwrap();
+        let err = v["error"]
+            .as_str()
+            .unwrap_or_else(|| panic!("expected an error for {}: {v}", path.display()));
+        assert!(
+            err.contains(path.to_str().unwrap()),
+            "error names the file: {err}"
+        );
+        assert!(err.contains(why), "error says why ({why}): {err}");
+    }
+    let ok = lines
+        .iter()
+        .find(|v| v["file"].as_str() == good.to_str())
+        .unwrap();
+    assert!(ok["leaf_count"].is_u64(), "the good image still counted: {ok}");
+}
+
+#[test]
+fn overlay_is_a_png_of_the_input_size() {
+    let tmp = tempfile::tempdir().unwrap();
+    let img = dev_images("images", 1).remove(0);
+    let (out, _, stderr) = run(phyllo()
+        .arg("count")
+        .arg("--model")
+        .arg(untrained_model())
+        .arg("--overlay")
+        .arg(tmp.path())
+        .arg(&img));
+    assert!(out.status.success(), "{stderr}");
+    let stem = img.file_stem().unwrap().to_string_lossy().into_owned();
+    let overlay = image::open(tmp.path().join(format!("{stem}.overlay.png"))).unwrap();
+    assert_eq!((overlay.width(), overlay.height()), (1227, 1028));
+}
+
+fn count_with(model: &Path, envs: &[(&str, &str)]) -> (i32, String) {
+    let img = dev_images("crops", 1).remove(0);
+    let mut cmd = phyllo();
+    cmd.arg("count").arg("--model").arg(model).arg(img);
+    for (k, v) in envs {
+        cmd.env(k, v);
+    }
+    let (out, _, stderr) = run(&mut cmd);
+    (out.status.code().unwrap_or(-1), stderr)
+}
+
+#[test]
+fn missing_or_wrong_onnx_runtime_is_a_one_line_error_naming_the_path() {
+    let (code, err) = count_with(
+        &untrained_model(),
+        &[("PHYLLO_ORT_LIB", "/nonexistent/libonnxruntime.so")],
+    );
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("/nonexistent/libonnxruntime.so") && err.contains("no such file"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    // A real shared library that is not ONNX Runtime.
+    let libc = [
+        "/lib/x86_64-linux-gnu/libc.so.6",
+        "/usr/lib/x86_64-linux-gnu/libc.so.6",
+    ]
+    .into_iter()
+    .find(|p| Path::new(p).exists());
+    if let Some(libc) = libc {
+        let (code, err) = count_with(&untrained_model(), &[("PHYLLO_ORT_LIB", libc)]);
+        assert_eq!(code, 2);
+        assert!(err.contains(libc) && err.contains("OrtGetApiBase"), "{err}");
+    }
+}
+
+#[test]
+fn unreadable_and_wrong_contract_models_are_refused_with_the_reason() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (code, err) = count_with(&tmp.path().join("nope.onnx"), &[]);
+    assert_eq!(code, 2);
+    assert!(err.contains("nope.onnx") && err.contains("cannot read"), "{err}");
+
+    let text = tmp.path().join("text.onnx");
+    std::fs::write(&text, b"this is not a model").unwrap();
+    let (code, err) = count_with(&text, &[]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("text.onnx") && err.contains("not a loadable ONNX model"),
+        "{err}"
+    );
+
+    // The same network stamped with another contract version: patch the
+    // metadata value that follows the key in the protobuf.
+    let mut bytes = std::fs::read(untrained_model()).unwrap();
+    let key = b"phyllo.contract_version";
+    let at = bytes
+        .windows(key.len())
+        .position(|w| w == key)
+        .expect("metadata key present");
+    let value_at = at + key.len() + 2; // field tag + length byte of the value
+    assert_eq!(bytes[value_at], b'1');
+    bytes[value_at] = b'7';
+    let wrong = tmp.path().join("wrong-contract.onnx");
+    std::fs::write(&wrong, &bytes).unwrap();
+    let (code, err) = count_with(&wrong, &[]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("wrong-contract.onnx") && err.contains("does not follow phyllo contract"),
+        "{err}"
+    );
+    assert!(
+        err.contains("\"7\"") && err.contains("needs"),
+        "says what differs: {err}"
+    );
+}
