@@ -50,23 +50,15 @@ fn env_or(name: &str, default: u32) -> u32 {
         .unwrap_or(default)
 }
 
-/// The workspace's target directory and the binaries in it, built if missing.
+/// The target directory and the two binaries, (re)built if stale.
 fn binaries() -> (PathBuf, PathBuf, PathBuf) {
-    let exe = std::env::current_exe().unwrap();
-    let profile_dir = exe.parent().unwrap().parent().unwrap().to_path_buf(); // target/<profile>/deps/..
-    let target = profile_dir.parent().unwrap().to_path_buf();
-    let phyllo = profile_dir.join("phyllo");
-    let gen = profile_dir.join("phyllo-gen");
-    if !phyllo.exists() || !gen.exists() {
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let mut cmd = Command::new(cargo);
-        cmd.args(["build", "-p", "phyllo", "-p", "phyllo-gen"])
-            .current_dir(phyllo_e2e::repo_root());
-        if profile_dir.file_name().is_some_and(|n| n == "release") {
-            cmd.arg("--release");
-        }
-        assert!(cmd.status().unwrap().success(), "building phyllo and phyllo-gen");
-    }
+    let phyllo = phyllo_e2e::binary("phyllo", "phyllo");
+    let gen = phyllo_e2e::binary("phyllo-gen", "phyllo-gen");
+    let target = phyllo
+        .parent()
+        .and_then(Path::parent)
+        .expect("target/<profile>/phyllo")
+        .to_path_buf();
     (target, phyllo, gen)
 }
 
