@@ -1,9 +1,7 @@
 //! phyllo: the leaf-counting daemon and its operator commands.
 //!
-//! The inference core lives in the `phyllo-inference` crate and is re-exported
-//! here as [`inference`]. Data flows one way through this crate, each stage in
-//! its own module (sources → transforms → sinks, as in Vector; the service
-//! shape follows tokio's mini-redis):
+//! Data flows one way, each stage in its own module (sources → transforms →
+//! sinks, as in Vector; the service shape follows tokio's mini-redis):
 //!
 //! ```text
 //! source::watch / source::scan ─► source::intake (stability, dedupe) ─► bounded queue
@@ -12,6 +10,8 @@
 //! ```
 //!
 //! [`config`] is the TOML file; [`service`] wires the stages for `phyllo serve`.
+//! The inference core (image → leaf count) is the `phyllo-inference` crate,
+//! re-exported as [`inference`].
 
 pub use phyllo_inference as inference;
 

@@ -1,11 +1,4 @@
-//! Command-line interface: one module per subcommand.
-
-use std::path::PathBuf;
-use std::process::ExitCode;
-
-use clap::{Parser, Subcommand};
-
-use crate::config::Config;
+//! The `phyllo` command line: one module per subcommand.
 
 pub mod bench;
 pub mod count;
@@ -17,29 +10,26 @@ pub mod status;
 pub mod tail;
 pub mod timeline;
 
-/// Top-level arguments.
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use crate::config::Config;
+
+/// phyllo: counts sorghum leaves in phenotyping images and keeps per-plant
+/// leaf-emergence timelines.
 #[derive(Debug, Parser)]
-#[command(
-    name = "phyllo",
-    version,
-    about = "Counts sorghum leaves and tracks leaf emergence"
-)]
+#[command(name = "phyllo", version, about, propagate_version = true)]
 pub struct Cli {
-    /// More log output (repeat for more).
-    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
-    pub verbose: u8,
-    /// The subcommand.
+    /// What to do.
     #[command(subcommand)]
     pub command: Command,
 }
 
-/// Subcommands.
+/// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Count leaves in image files.
-    Count(count::Args),
-    /// Time each inference stage on full camera frames, beside a Python pipeline.
-    Bench(bench::Args),
     /// Run the daemon: watch the drop directory, count leaves, keep timelines.
     Serve(serve::Args),
     /// Ingest leaf counts made elsewhere (CSV: plant,timestamp,view,leaf_count).
@@ -52,9 +42,13 @@ pub enum Command {
     Timeline(timeline::Args),
     /// Show the service's queue, progress, failures and model.
     Status(status::Args),
+    /// Count leaves in image files (exit 1 if any input failed).
+    Count(count::Args),
+    /// Time each inference stage on full camera frames, beside a Python pipeline.
+    Bench(bench::Args),
 }
 
-/// `--config FILE`, shared by the daemon's subcommands.
+/// `--config FILE`, shared by every subcommand that needs the config.
 #[derive(Debug, clap::Args)]
 pub struct ConfigArg {
     /// Configuration file (TOML).
@@ -69,35 +63,17 @@ impl ConfigArg {
     }
 }
 
-/// Sets up `tracing` to stderr; `RUST_LOG` overrides the level.
-pub fn init_logging(verbose: u8) {
-    let default = match verbose {
-        0 => "warn",
-        1 => "info",
-        _ => "debug",
-    };
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
-    // No colour codes when stderr is a file or the journal.
-    let ansi = std::io::IsTerminal::is_terminal(&std::io::stderr());
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .with_ansi(ansi)
-        .try_init();
-}
-
-/// Runs the chosen subcommand.
+/// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
-    let done = |r: anyhow::Result<()>| r.map(|()| ExitCode::SUCCESS);
+    let ok = |r: anyhow::Result<()>| r.map(|()| ExitCode::SUCCESS);
     match cli.command {
-        Command::Count(args) => count::run(args),
-        Command::Bench(args) => bench::run(args),
-        Command::Serve(a) => done(serve::run(a)),
-        Command::Import(a) => done(import::run(a)),
-        Command::Tail(a) => done(tail::run(a)),
-        Command::Export(a) => done(export::run(a)),
-        Command::Timeline(a) => done(timeline::run(a)),
-        Command::Status(a) => done(status::run(a)),
+        Command::Serve(a) => ok(serve::run(a)),
+        Command::Import(a) => ok(import::run(a)),
+        Command::Tail(a) => ok(tail::run(a)),
+        Command::Export(a) => ok(export::run(a)),
+        Command::Timeline(a) => ok(timeline::run(a)),
+        Command::Status(a) => ok(status::run(a)),
+        Command::Count(a) => count::run(a),
+        Command::Bench(a) => bench::run(a),
     }
 }
