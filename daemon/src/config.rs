@@ -180,11 +180,32 @@ pub struct ExportConfig {
 }
 
 impl Config {
-    /// Reads and validates a configuration file.
+    /// Reads and validates a configuration file. Relative paths in it are
+    /// taken relative to the file's directory (a service's working directory
+    /// is `/`, an operator's is anywhere; the file is the one fixed point).
     pub fn load(path: &Path) -> anyhow::Result<Config> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("reading config file {}", path.display()))?;
-        Self::parse(&text).with_context(|| format!("config file {}", path.display()))
+        let mut cfg = Self::parse(&text).with_context(|| format!("config file {}", path.display()))?;
+        let base = path.parent().unwrap_or(Path::new(""));
+        let fix = |p: &mut PathBuf| {
+            if p.is_relative() {
+                *p = base.join(&*p);
+            }
+        };
+        fix(&mut cfg.drop_dir);
+        fix(&mut cfg.database);
+        for p in [
+            &mut cfg.inference.model,
+            &mut cfg.inference.ort_lib,
+            &mut cfg.export.dir,
+        ]
+        .into_iter()
+        .flatten()
+        {
+            fix(p);
+        }
+        Ok(cfg)
     }
 
     /// Parses and validates configuration text.
@@ -253,6 +274,26 @@ mod tests {
             let text = format!("drop_dir = \"/d\"\ndatabase = \"/db\"\n{bad}\n");
             assert!(Config::parse(&text).is_err(), "accepted: {bad}");
         }
+    }
+
+    #[test]
+    fn relative_paths_follow_the_config_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("phyllo.toml");
+        std::fs::write(
+            &path,
+            "drop_dir = \"drop\"\ndatabase = \"/abs/db.sqlite\"\n[inference]\nmodel = \"m.onnx\"\n",
+        )
+        .unwrap();
+        let cfg = Config::load(&path).unwrap();
+        assert_eq!(cfg.drop_dir, dir.path().join("drop"));
+        assert_eq!(cfg.database, PathBuf::from("/abs/db.sqlite"));
+        assert_eq!(cfg.inference.model, Some(dir.path().join("m.onnx")));
+        let err = format!(
+            "{:#}",
+            Config::load(&dir.path().join("missing.toml")).unwrap_err()
+        );
+        assert!(err.contains("missing.toml"), "{err}");
     }
 
     /// The example config parses and documents every key the code knows.

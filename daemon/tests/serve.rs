@@ -272,3 +272,80 @@ fn missing_drop_dir_is_waited_for() {
     });
     svc.stop();
 }
+
+/// Counts like [`TextCounter`] but takes its time, like a real model on a slow CPU.
+struct SlowCounter(Duration);
+
+impl LeafCounter for SlowCounter {
+    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError> {
+        std::thread::sleep(self.0);
+        TextCounter.count(name, bytes)
+    }
+
+    fn model_id(&self) -> String {
+        "slow-text-counter".into()
+    }
+}
+
+#[test]
+fn bounded_queue_and_sigterm_hand_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cfg = config(dir.path());
+    cfg.inference.queue_capacity = 2;
+    cfg.inference.workers = 1;
+    let db = cfg.database.clone();
+    std::fs::create_dir_all(&cfg.drop_dir).unwrap();
+    let n = 16;
+    for i in 0..n {
+        std::fs::write(cfg.drop_dir.join(name("Q", 1 + i, 0)), body(5 + i)).unwrap();
+    }
+    let run = |cfg: Config| {
+        let (stop, rx) = watch::channel(false);
+        let handle = std::thread::spawn(move || {
+            let rt = tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(2)
+                .enable_all()
+                .build()
+                .unwrap();
+            rt.block_on(phyllo::service::run(
+                cfg,
+                Arc::new(SlowCounter(Duration::from_millis(250))),
+                rx,
+            ))
+        });
+        Running { stop, handle }
+    };
+    let svc = run(cfg.clone());
+    // While the single worker is busy, the queue never holds more than its capacity.
+    wait_for("first count", Duration::from_secs(20), || {
+        query(&db, "SELECT COUNT(*) FROM observations") >= 1
+    });
+    let t0 = Instant::now();
+    let mut max_queued = 0;
+    while t0.elapsed() < Duration::from_millis(1000) {
+        if let Ok(s) = Store::open_read_only(&db) {
+            if let Some(q) = s.service().unwrap().get("queued") {
+                max_queued = max_queued.max(q.parse::<usize>().unwrap());
+            }
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // SIGTERM equivalent mid-run: the image in hand is finished, the queued ones are handed back.
+    svc.stop();
+    let done = query(&db, "SELECT COUNT(*) FROM observations");
+    assert!(done > 0 && done < n as i64, "stopped mid-run: {done} of {n}");
+    assert_eq!(
+        query(&db, "SELECT COUNT(*) FROM images"),
+        done,
+        "nothing half-recorded"
+    );
+    assert!(max_queued <= 3, "queue stayed bounded: {max_queued}");
+    // After a restart every image is counted exactly once.
+    let svc = run(cfg.clone());
+    wait_for("the rest after restart", Duration::from_secs(60), || {
+        query(&db, "SELECT COUNT(*) FROM observations") == n as i64
+    });
+    svc.stop();
+    assert_eq!(query(&db, "SELECT COUNT(*) FROM images"), n as i64);
+    assert_eq!(query(&db, "SELECT COUNT(DISTINCT path) FROM images"), n as i64);
+}

@@ -31,9 +31,11 @@ mod chrono_free {
         era * 146_097 + yoe * 365 + yoe / 4 - yoe / 100 + doy
     }
 
-    /// Fractional days from `a` (YYYY-MM-DD) to `b` (YYYY-MM-DD[THH:MM:SS...]).
+    /// Fractional days from the middle of day `a` (YYYY-MM-DD: truth.csv only
+    /// gives the date, so the emergence is anywhere in it) to `b`
+    /// (YYYY-MM-DD[THH:MM:SS...]).
     pub fn days_between(a: &str, b: &str) -> f64 {
-        let mut t = (days(b) - days(a)) as f64;
+        let mut t = (days(b) - days(a)) as f64 - 0.5;
         if b.len() >= 19 {
             let h: f64 = b[11..13].parse().unwrap();
             let m: f64 = b[14..16].parse().unwrap();
@@ -50,23 +52,15 @@ fn env_or(name: &str, default: u32) -> u32 {
         .unwrap_or(default)
 }
 
-/// The workspace's target directory and the binaries in it, built if missing.
+/// The target directory and the two binaries, (re)built if stale.
 fn binaries() -> (PathBuf, PathBuf, PathBuf) {
-    let exe = std::env::current_exe().unwrap();
-    let profile_dir = exe.parent().unwrap().parent().unwrap().to_path_buf(); // target/<profile>/deps/..
-    let target = profile_dir.parent().unwrap().to_path_buf();
-    let phyllo = profile_dir.join("phyllo");
-    let gen = profile_dir.join("phyllo-gen");
-    if !phyllo.exists() || !gen.exists() {
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let mut cmd = Command::new(cargo);
-        cmd.args(["build", "-p", "phyllo", "-p", "phyllo-gen"])
-            .current_dir(phyllo_e2e::repo_root());
-        if profile_dir.file_name().is_some_and(|n| n == "release") {
-            cmd.arg("--release");
-        }
-        assert!(cmd.status().unwrap().success(), "building phyllo and phyllo-gen");
-    }
+    let phyllo = phyllo_e2e::binary("phyllo", "phyllo");
+    let gen = phyllo_e2e::binary("phyllo-gen", "phyllo-gen");
+    let target = phyllo
+        .parent()
+        .and_then(Path::parent)
+        .expect("target/<profile>/phyllo")
+        .to_path_buf();
     (target, phyllo, gen)
 }
 
@@ -349,4 +343,118 @@ fn daemon_counts_a_generated_sequence() {
         mae,
         bias
     );
+}
+
+/// Emergence-date error of the timeline itself, with the model taken out: the
+/// generator's true living-leaf counts (exact, then with ±1 noise on a third of
+/// the days) go through `phyllo import`, the same fusion and isotonic fit as
+/// the model's counts, and the exported events are compared with `truth.csv`.
+#[test]
+fn timeline_recovers_emergence_dates_from_true_counts() {
+    let (target, phyllo, gen) = binaries();
+    let (plants, days, seed) = (10u32, 21u32, 11u32);
+    // One tiny view per day: only truth.csv matters here.
+    let frames_dir = target.join(format!("e2e-cache/truth-p{plants}-d{days}-s{seed}"));
+    let out = Command::new(&gen)
+        .args(["sequence", "--out"])
+        .arg(&frames_dir)
+        .args([
+            "--plants",
+            &plants.to_string(),
+            "--days",
+            &days.to_string(),
+            "--seed",
+            &seed.to_string(),
+        ])
+        .args(["--views", "108", "--frame-height", "64", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "phyllo-gen sequence: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let truth = read_csv(&frames_dir.join("truth.csv"));
+
+    for (label, noisy) in [
+        ("exact counts", false),
+        ("counts with +-1 noise on 1/3 of days", true),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let cfg = dir.path().join("phyllo.toml");
+        std::fs::write(
+            &cfg,
+            format!(
+                "drop_dir = {:?}\ndatabase = {:?}\n",
+                dir.path().join("drop"),
+                dir.path().join("db.sqlite")
+            ),
+        )
+        .unwrap();
+        let mut obs = String::from("plant,timestamp,view,leaf_count\n");
+        let mut rng = 0x9e3779b97f4a7c15u64;
+        for t in &truth {
+            let mut c: i64 = t["living_leaves"].parse().unwrap();
+            if noisy {
+                rng ^= rng << 13;
+                rng ^= rng >> 7;
+                rng ^= rng << 17;
+                c += [0, 0, 0, 0, 1, -1][(rng % 6) as usize];
+            }
+            obs += &format!("{},{}T{},SV_108,{}\n", t["plant"], t["date"], t["time"], c.max(0));
+        }
+        let obs_path = dir.path().join("truth-counts.csv");
+        std::fs::write(&obs_path, obs).unwrap();
+        let st = Command::new(&phyllo)
+            .args(["import", "-c"])
+            .arg(&cfg)
+            .arg(&obs_path)
+            .output()
+            .unwrap();
+        assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+        let events_csv = dir.path().join("events.csv");
+        let st = Command::new(&phyllo)
+            .args(["export", "--what", "events", "-c"])
+            .arg(&cfg)
+            .arg("--out")
+            .arg(&events_csv)
+            .output()
+            .unwrap();
+        assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+        let events = read_csv(&events_csv);
+        let mut errs = Vec::new();
+        let mut dateable = 0;
+        for p in truth
+            .iter()
+            .map(|t| t["plant"].clone())
+            .collect::<std::collections::BTreeSet<_>>()
+        {
+            let first = truth.iter().find(|t| t["plant"] == p).unwrap()["date"].clone();
+            let last = truth.iter().rev().find(|t| t["plant"] == p).unwrap();
+            let dates: Vec<&str> = last["emergence_dates"]
+                .split(';')
+                .filter(|s| !s.is_empty())
+                .collect();
+            dateable += dates.iter().filter(|d| **d > first.as_str()).count();
+            for e in events.iter().filter(|e| e["plant"] == p) {
+                let leaf: usize = e["leaf"].parse().unwrap();
+                if let Some(d) = dates.get(leaf - 1) {
+                    errs.push(days_between(d, &e["emerged_at"]));
+                }
+            }
+        }
+        let mae = errs.iter().map(|e| e.abs()).sum::<f64>() / errs.len().max(1) as f64;
+        let bias = errs.iter().sum::<f64>() / errs.len().max(1) as f64;
+        let within1 = errs.iter().filter(|e| e.abs() <= 1.0).count();
+        eprintln!(
+            "timeline from {label}: {plants} plants x {days} days; {} events predicted, {dateable} dateable in truth, \
+             {} matched; emergence date MAE {mae:.2} days, bias {bias:+.2} days, {within1} within 1 day",
+            events.len(),
+            errs.len()
+        );
+        assert!(!errs.is_empty(), "{label}: no events matched");
+        if !noisy {
+            assert!(mae <= 1.5, "{label}: emergence date MAE {mae:.2} days");
+        }
+    }
 }
