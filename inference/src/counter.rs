@@ -17,6 +17,10 @@ use crate::runtime;
 use crate::stitch::{stitch, TileOutputs};
 use crate::tiling::{batch_tensor, prepare, Canvas};
 
+/// Slack around the plant's box, in model pixels, within which instance
+/// centres are still taken as plant.
+const PLANT_MARGIN: i64 = 16;
+
 /// Environment variable naming the default model file.
 pub const MODEL_ENV: &str = "PHYLLO_MODEL";
 
@@ -187,7 +191,17 @@ impl Counter {
         let t2 = Instant::now();
         let (cw, ch) = canvas.image.dimensions();
         let raw = stitch(&outputs, &canvas.tiles, cw, ch, c.outputs.stride);
-        let pan = panoptic(&raw, c, &self.config.postprocess);
+        let mut pan = panoptic(&raw, c, &self.config.postprocess);
+        if let Some([x0, y0, x1, y1]) = canvas.plant {
+            // The chamber's frames and panels sometimes look leaf-like to the
+            // model; an instance centred outside the plant's box is not a leaf.
+            let s = f64::from(c.outputs.stride);
+            let m = PLANT_MARGIN;
+            pan.retain(|seg| {
+                let (x, y) = (f64::from(seg.centre[0]) * s, f64::from(seg.centre[1]) * s);
+                x >= (x0 - m) as f64 && x < (x1 + m) as f64 && y >= (y0 - m) as f64 && y < (y1 + m) as f64
+            });
+        }
         let result = to_result(c, &pan, &canvas, img.dimensions());
         let post_ms = ms(t2);
         let mut result = result;

@@ -106,6 +106,26 @@ pub struct Panoptic {
 }
 
 impl Panoptic {
+    /// Keeps the segments for which `keep` holds, clearing the others'
+    /// pixels and renumbering the rest densely in their current order.
+    pub fn retain(&mut self, keep: impl Fn(&Segment) -> bool) {
+        let mut renumber = vec![0u32; self.segments.len() + 1];
+        let mut kept = Vec::with_capacity(self.segments.len());
+        for seg in self.segments.drain(..) {
+            if keep(&seg) {
+                renumber[seg.id as usize] = kept.len() as u32 + 1;
+                kept.push(Segment {
+                    id: kept.len() as u32 + 1,
+                    ..seg
+                });
+            }
+        }
+        for v in self.instance.iter_mut() {
+            *v = renumber[*v as usize];
+        }
+        self.segments = kept;
+    }
+
     /// Number of instances of `class`.
     pub fn count(&self, class: u8) -> usize {
         self.segments.iter().filter(|s| s.class == class).count()
@@ -307,6 +327,31 @@ mod tests {
         c[[2, 18]] = 0.05; // below threshold
         let got = find_centres(&c, &params());
         assert_eq!(got, vec![(5, 5, 0.9), (15, 15, 0.7)]);
+    }
+
+    #[test]
+    fn retain_clears_and_renumbers() {
+        let seg = |id, x| Segment {
+            id,
+            class: 1,
+            area: 1,
+            bbox: [x, 0, x + 1, 1],
+            centre: [x as f32, 0.0],
+            score: 1.0,
+        };
+        let mut p = Panoptic {
+            height: 1,
+            width: 3,
+            semantic: vec![1, 1, 1],
+            instance: vec![1, 2, 3],
+            segments: vec![seg(1, 0), seg(2, 1), seg(3, 2)],
+        };
+        p.retain(|s| s.id != 2);
+        assert_eq!(p.instance, vec![1, 0, 2]);
+        assert_eq!(
+            p.segments.iter().map(|s| (s.id, s.bbox[0])).collect::<Vec<_>>(),
+            vec![(1, 0), (2, 2)]
+        );
     }
 
     #[test]

@@ -60,6 +60,10 @@ pub struct Canvas {
     pub origin: [i64; 2],
     /// Plant region in original-image pixels `[x0, y0, x1, y1]`.
     pub region: [u32; 4],
+    /// Plant region in canvas pixels `[x0, y0, x1, y1]` when it is known (a
+    /// plant was found by colour, or a fixed region was given); instances
+    /// centred outside it are chamber, not plant.
+    pub plant: Option<[i64; 4]>,
     /// Top-left corners of the tiles, in canvas pixels.
     pub tiles: Vec<[u32; 2]>,
 }
@@ -83,19 +87,23 @@ pub fn prepare(contract: &Contract, img: &RgbImage, mode: RegionMode, scale: Opt
     let scaled = resize(img, scale);
     let (sw, sh) = scaled.dimensions();
 
-    // The region in scaled pixels.
-    let [rx0, ry0, rx1, ry1] = match mode {
-        RegionMode::Full => [0, 0, sw, sh],
+    // The region in scaled pixels, and whether it really bounds the plant.
+    let whole = [0, 0, sw, sh];
+    let (known, [rx0, ry0, rx1, ry1]) = match mode {
+        RegionMode::Full => (false, whole),
         RegionMode::Fixed { x0, y0, x1, y1 } => {
             let s = |v: u32, max: u32| ((v as f32 * scale).round() as u32).min(max);
             let (a, b, c, d) = (s(x0, sw), s(y0, sh), s(x1, sw), s(y1, sh));
             if c > a && d > b {
-                [a, b, c, d]
+                (true, [a, b, c, d])
             } else {
-                [0, 0, sw, sh]
+                (false, whole)
             }
         }
-        RegionMode::Auto => plant_bbox(&scaled, 0.02, 12, 40).unwrap_or([0, 0, sw, sh]),
+        RegionMode::Auto => match plant_bbox(&scaled, 0.02, 12, 40) {
+            Some(b) => (true, b),
+            None => (false, whole),
+        },
     };
 
     // Grow the region to at least one tile per side, centred on the plant,
@@ -139,11 +147,20 @@ pub fn prepare(contract: &Contract, img: &RgbImage, mode: RegionMode, scale: Opt
         to_orig(rx1, img.width()),
         to_orig(ry1, img.height()),
     ];
+    let plant = known.then(|| {
+        [
+            i64::from(rx0) - ox,
+            i64::from(ry0) - oy,
+            i64::from(rx1) - ox,
+            i64::from(ry1) - oy,
+        ]
+    });
     Canvas {
         image: canvas,
         scale,
         origin: [ox, oy],
         region,
+        plant,
         tiles,
     }
 }
