@@ -75,7 +75,8 @@ def prepare(img: np.ndarray):
     s = scale_for(w, h)
     sw, sh = max(round(w * s), 1), max(round(h * s), 1)
     scaled = np.asarray(Image.fromarray(img).resize((sw, sh), Image.BILINEAR))
-    box = plant_bbox(scaled) or (0, 0, sw, sh)
+    found = plant_bbox(scaled)
+    box = found or (0, 0, sw, sh)
 
     def span(lo, hi, length):
         want = max(hi - lo, tile)
@@ -94,7 +95,8 @@ def prepare(img: np.ndarray):
     canvas[ys - oy:ye - oy, xs - ox:xe - ox] = scaled[ys:ye, xs:xe]
     ov = CONTRACT["input"]["tile_overlap"]
     tiles = [(x, y) for y in tile_starts(ch, tile, ov, stride) for x in tile_starts(cw, tile, ov, stride)]
-    return canvas, tiles
+    plant = None if found is None else (box[0] - ox, box[1] - oy, box[2] - ox, box[3] - oy)
+    return canvas, tiles, plant
 
 
 def normalise(canvas: np.ndarray, tiles) -> np.ndarray:
@@ -131,7 +133,10 @@ def stitch(sem, cen, off, tiles, cw, ch):
     return out_sem, out_cen, out_off
 
 
-def postprocess(sem, cen, off):
+PLANT_MARGIN = 16  # model pixels of slack around the plant box, as in counter.rs
+
+
+def postprocess(sem, cen, off, plant=None):
     pp = CONTRACT["postprocess"]
     things = CONTRACT["classes"]["things"]
     semantic = sem.argmax(0)
@@ -154,6 +159,12 @@ def postprocess(sem, cen, off):
     areas = votes.sum(1)
     classes = votes.argmax(1)
     keep = areas >= max(pp["min_leaf_area"], 1)
+    if plant is not None:
+        # Instances centred outside the plant's box are chamber, not plant.
+        s = CONTRACT["outputs"]["stride"]
+        x0, y0, x1, y1 = plant
+        m = PLANT_MARGIN
+        keep &= (cx * s >= x0 - m) & (cx * s < x1 + m) & (cy * s >= y0 - m) & (cy * s < y1 + m)
     return int(((classes == CONTRACT["classes"]["leaf"]) & keep).sum())
 
 
@@ -179,14 +190,14 @@ def main() -> int:
         t0 = time.perf_counter()
         img = np.asarray(Image.open(path).convert("RGB"))
         t1 = time.perf_counter()
-        canvas, tiles = prepare(img)
+        canvas, tiles, plant = prepare(img)
         batch = normalise(canvas, tiles)
         t2 = time.perf_counter()
         outs = [sess.run(names, {CONTRACT["input"]["name"]: batch[i:i + args.batch]})
                 for i in range(0, len(batch), args.batch)]
         sem, cen, off = (np.concatenate([o[j] for o in outs]) for j in range(3))
         t3 = time.perf_counter()
-        n = postprocess(*stitch(sem, cen, off, tiles, canvas.shape[1], canvas.shape[0]))
+        n = postprocess(*stitch(sem, cen, off, tiles, canvas.shape[1], canvas.shape[0]), plant)
         t4 = time.perf_counter()
         if stats is not None:
             for k, v in (("decode", t1 - t0), ("tile", t2 - t1), ("inference", t3 - t2),
