@@ -62,16 +62,21 @@ impl Site {
         std::fs::create_dir_all(&state).unwrap();
         let db = state.join("phyllo.sqlite");
         let cfg = tmp.path().join("phyllo.toml");
-        let watch = if watch_extra.contains("rescan_secs") {
-            watch_extra.to_string()
-        } else {
-            format!("rescan_secs = 2\n{watch_extra}")
-        };
+        // Fast intake timings, each overridable by a line of `watch_extra`.
+        let mut watch: Vec<String> = ["stable_secs = 1.0", "settle_ms = 100", "poll_ms = 50", "rescan_secs = 2"]
+            .iter()
+            .filter(|d| {
+                let key = d.split('=').next().unwrap().trim();
+                !watch_extra.lines().any(|l| l.split('=').next().unwrap().trim() == key)
+            })
+            .map(|d| d.to_string())
+            .collect();
+        watch.extend(watch_extra.lines().filter(|l| !l.trim().is_empty()).map(String::from));
         std::fs::write(
             &cfg,
             format!(
-                "drop_dir = {drop:?}\ndatabase = {db:?}\n[watch]\nstable_secs = 1.0\nsettle_ms = 100\npoll_ms = 50\n{watch}\
-                 [inference]\nmodel = {:?}\n{extra}",
+                "drop_dir = {drop:?}\ndatabase = {db:?}\n[watch]\n{}\n[inference]\nmodel = {:?}\n{extra}",
+                watch.join("\n"),
                 model()
             ),
         )
