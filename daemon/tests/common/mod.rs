@@ -22,9 +22,13 @@ pub fn repo_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
 }
 
-/// The shipped test model (random weights, valid contract).
+/// The model the daemon runs: `PHYLLO_TEST_MODEL` (relative to the repository
+/// root), else the shipped test model (random weights, valid contract).
 pub fn model() -> PathBuf {
-    repo_root().join("models/phyllo-untrained.onnx")
+    match std::env::var_os("PHYLLO_TEST_MODEL") {
+        Some(m) => repo_root().join(m),
+        None => repo_root().join("models/phyllo-untrained.onnx"),
+    }
 }
 
 /// An environment knob with a default.
