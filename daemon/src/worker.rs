@@ -181,8 +181,11 @@ fn read_inside(root: &Path, job: &Job) -> Read {
     if !meta.is_file() {
         return refuse(format!("{name}: not a regular file"), false);
     }
-    let real = std::fs::read_link(format!("/proc/self/fd/{}", std::os::fd::AsRawFd::as_raw_fd(&file)))
-        .or_else(|_| std::fs::canonicalize(&job.path));
+    let real = std::fs::read_link(format!(
+        "/proc/self/fd/{}",
+        std::os::fd::AsRawFd::as_raw_fd(&file)
+    ))
+    .or_else(|_| std::fs::canonicalize(&job.path));
     let root = std::fs::canonicalize(root).unwrap_or_else(|_| root.to_path_buf());
     match real {
         Ok(real) if real.starts_with(&root) => {}
@@ -214,7 +217,11 @@ fn read_inside(root: &Path, job: &Job) -> Read {
     // take(): the file may grow between the stat and the read.
     match std::io::Read::read_to_end(&mut std::io::Read::take(&file, MAX_FILE_BYTES + 1), &mut bytes) {
         Ok(_) if bytes.len() as u64 > MAX_FILE_BYTES => refuse(
-            format!("{}: larger than the {} MiB limit for one image", name, MAX_FILE_BYTES >> 20),
+            format!(
+                "{}: larger than the {} MiB limit for one image",
+                name,
+                MAX_FILE_BYTES >> 20
+            ),
             false,
         ),
         Ok(_) => Read::Bytes(bytes, meta),

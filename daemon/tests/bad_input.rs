@@ -57,7 +57,11 @@ fn crc32(data: &[u8]) -> u32 {
     for &b in data {
         crc ^= u32::from(b);
         for _ in 0..8 {
-            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
         }
     }
     !crc
@@ -123,7 +127,12 @@ fn cases(site: &Site) -> Vec<Case> {
         n += 1;
         n
     };
-    add("zero-byte file", name("Z", next()), Make::Bytes(vec![]), Failed("empty (0 bytes)"));
+    add(
+        "zero-byte file",
+        name("Z", next()),
+        Make::Bytes(vec![]),
+        Failed("empty (0 bytes)"),
+    );
     add(
         "truncated PNG",
         name("TP", next()),
@@ -185,55 +194,81 @@ fn cases(site: &Site) -> Vec<Case> {
     add(
         "1x1 image",
         name("ONE", next()),
-        Make::Bytes(png(DynamicImage::ImageRgb8(ImageBuffer::from_pixel(1, 1, image::Rgb([9, 9, 9]))))),
+        Make::Bytes(png(DynamicImage::ImageRgb8(ImageBuffer::from_pixel(
+            1,
+            1,
+            image::Rgb([9, 9, 9]),
+        )))),
         Failed("too small"),
     );
     add(
         "100000x2 image",
         name("WIDE", next()),
-        Make::Bytes(png(DynamicImage::ImageLuma8(ImageBuffer::from_pixel(100_000, 2, image::Luma([200]))))),
+        Make::Bytes(png(DynamicImage::ImageLuma8(ImageBuffer::from_pixel(
+            100_000,
+            2,
+            image::Luma([200]),
+        )))),
         Failed("too small"),
     );
     add(
         "16-bit RGB PNG",
         name("RGB16", next()),
-        Make::Bytes(png(DynamicImage::ImageRgb16(ImageBuffer::from_fn(64, 64, |x, y| {
-            let p = rgb.get_pixel(x, y).0;
-            image::Rgb([u16::from(p[0]) * 257, u16::from(p[1]) * 257, u16::from(p[2]) * 257])
-        })))),
+        Make::Bytes(png(DynamicImage::ImageRgb16(ImageBuffer::from_fn(
+            64,
+            64,
+            |x, y| {
+                let p = rgb.get_pixel(x, y).0;
+                image::Rgb([
+                    u16::from(p[0]) * 257,
+                    u16::from(p[1]) * 257,
+                    u16::from(p[2]) * 257,
+                ])
+            },
+        )))),
         Counted,
     );
     add(
         "16-bit grey PNG",
         name("GREY16", next()),
-        Make::Bytes(png(DynamicImage::ImageLuma16(ImageBuffer::from_fn(64, 64, |x, y| {
-            image::Luma([(x * 1000 + y * 7) as u16])
-        })))),
+        Make::Bytes(png(DynamicImage::ImageLuma16(ImageBuffer::from_fn(
+            64,
+            64,
+            |x, y| image::Luma([(x * 1000 + y * 7) as u16]),
+        )))),
         Counted,
     );
     add(
         "8-bit grey PNG",
         name("GREY", next()),
-        Make::Bytes(png(DynamicImage::ImageLuma8(ImageBuffer::from_fn(64, 64, |x, y| {
-            image::Luma([(x * 3 + y) as u8])
-        })))),
+        Make::Bytes(png(DynamicImage::ImageLuma8(ImageBuffer::from_fn(
+            64,
+            64,
+            |x, y| image::Luma([(x * 3 + y) as u8]),
+        )))),
         Counted,
     );
     add(
         "grey+alpha PNG",
         name("GA", next()),
-        Make::Bytes(png(DynamicImage::ImageLumaA8(ImageBuffer::from_fn(64, 64, |x, y| {
-            image::LumaA([(x + y) as u8, 128])
-        })))),
+        Make::Bytes(png(DynamicImage::ImageLumaA8(ImageBuffer::from_fn(
+            64,
+            64,
+            |x, y| image::LumaA([(x + y) as u8, 128]),
+        )))),
         Counted,
     );
     add(
         "RGBA PNG",
         name("RGBA", next()),
-        Make::Bytes(png(DynamicImage::ImageRgba8(ImageBuffer::from_fn(64, 64, |x, y| {
-            let p = rgb.get_pixel(x, y).0;
-            image::Rgba([p[0], p[1], p[2], (x * 4) as u8])
-        })))),
+        Make::Bytes(png(DynamicImage::ImageRgba8(ImageBuffer::from_fn(
+            64,
+            64,
+            |x, y| {
+                let p = rgb.get_pixel(x, y).0;
+                image::Rgba([p[0], p[1], p[2], (x * 4) as u8])
+            },
+        )))),
         Counted,
     );
     add(
@@ -242,17 +277,28 @@ fn cases(site: &Site) -> Vec<Case> {
         Make::Bytes(std::fs::read(repo_root().join("daemon/tests/fixtures/cmyk.jpg")).unwrap()),
         Counted,
     );
-    add("RGB JPEG", name("JPG", next()).replace(".png", ".jpeg"), Make::Bytes(good_jpg.clone()), Counted);
+    add(
+        "RGB JPEG",
+        name("JPG", next()).replace(".png", ".jpeg"),
+        Make::Bytes(good_jpg.clone()),
+        Counted,
+    );
     add(
         "TIFF",
         name("TIF", next()).replace(".png", ".tif"),
-        Make::Bytes(encode(DynamicImage::ImageRgb8(noise(64, 64, 5)), ImageFormat::Tiff)),
+        Make::Bytes(encode(
+            DynamicImage::ImageRgb8(noise(64, 64, 5)),
+            ImageFormat::Tiff,
+        )),
         Counted,
     );
     add(
         "JPEG content named .png (format from content)",
         name("JASP", next()),
-        Make::Bytes(encode(DynamicImage::ImageRgb8(noise(64, 64, 6)), ImageFormat::Jpeg)),
+        Make::Bytes(encode(
+            DynamicImage::ImageRgb8(noise(64, 64, 6)),
+            ImageFormat::Jpeg,
+        )),
         Counted,
     );
     add(
@@ -261,8 +307,18 @@ fn cases(site: &Site) -> Vec<Case> {
         Make::Bytes(png(DynamicImage::ImageRgb8(noise(64, 64, 7)))),
         Counted,
     );
-    add("a directory named like an image", name("DIR", next()), Make::Dir, Ignored);
-    add("a FIFO named like an image (never opened)", name("FIFO", next()), Make::Fifo, Ignored);
+    add(
+        "a directory named like an image",
+        name("DIR", next()),
+        Make::Dir,
+        Ignored,
+    );
+    add(
+        "a FIFO named like an image (never opened)",
+        name("FIFO", next()),
+        Make::Fifo,
+        Ignored,
+    );
     add(
         "a sparse 300 MiB file",
         name("HUGE", next()),
@@ -425,15 +481,23 @@ fn bad_input_each_kind_recorded_and_service_keeps_going() {
         .iter()
         .filter(|c| c.expect != Ignored && !skipped.iter().any(|s| s.0 == c.kind))
         .count() as i64;
-    site.wait_for(&format!("{recorded} bad-input records"), Duration::from_secs(120), || {
-        site.q("SELECT COUNT(*) FROM images") >= recorded
-    });
+    site.wait_for(
+        &format!("{recorded} bad-input records"),
+        Duration::from_secs(120),
+        || site.q("SELECT COUNT(*) FROM images") >= recorded,
+    );
     // A good image after all that is still counted.
     let good = flat_name("GOOD", 28, 59, 144);
     drop_file(&site.drop.join(&good), &small_png(4242, 96), true);
-    site.wait_for("the good image after the bad ones", Duration::from_secs(60), || {
-        site.q(&format!("SELECT COUNT(*) FROM images WHERE path = '{good}' AND state = 'counted'")) == 1
-    });
+    site.wait_for(
+        "the good image after the bad ones",
+        Duration::from_secs(60),
+        || {
+            site.q(&format!(
+                "SELECT COUNT(*) FROM images WHERE path = '{good}' AND state = 'counted'"
+            )) == 1
+        },
+    );
     std::thread::sleep(Duration::from_secs(3)); // one rescan: nothing is recorded twice
     assert!(d.alive(), "the service survived every kind");
     let status = site.status();
@@ -451,10 +515,12 @@ fn bad_input_each_kind_recorded_and_service_keeps_going() {
                 .conn()
                 .prepare("SELECT state, error FROM images WHERE path = ?1")
                 .unwrap();
-            st.query_map([&c.rel], |r| Ok((r.get::<_, String>(0)?, r.get::<_, Option<String>>(1)?)))
-                .unwrap()
-                .map(Result::unwrap)
-                .collect::<Vec<_>>()
+            st.query_map([&c.rel], |r| {
+                Ok((r.get::<_, String>(0)?, r.get::<_, Option<String>>(1)?))
+            })
+            .unwrap()
+            .map(Result::unwrap)
+            .collect::<Vec<_>>()
         };
         let shown = phyllo::names::printable(&c.rel);
         let file_name = phyllo::names::printable(Path::new(&c.rel).file_name().unwrap().to_str().unwrap());
@@ -462,7 +528,10 @@ fn bad_input_each_kind_recorded_and_service_keeps_going() {
             (Ignored, []) => true,
             (Counted, [(s, None)]) => s == "counted",
             (Failed(what), [(s, Some(e))]) => {
-                s == "failed" && e.contains(what) && (e.contains(&shown) || e.contains(&file_name)) && !e.contains('\n')
+                s == "failed"
+                    && e.contains(what)
+                    && (e.contains(&shown) || e.contains(&file_name))
+                    && !e.contains('\n')
             }
             _ => false,
         };
@@ -481,8 +550,14 @@ fn bad_input_each_kind_recorded_and_service_keeps_going() {
         site.q("SELECT COUNT(*) FROM plants WHERE name = 'x''); DROP TABLE images;--'"),
         1
     );
-    assert_eq!(site.q("SELECT COUNT(*) FROM plants WHERE name = 'plant with spaces'"), 1);
-    assert_eq!(site.q("SELECT COUNT(*) FROM plants WHERE name = 'Sorgho-ü-高粱-🌾'"), 1);
+    assert_eq!(
+        site.q("SELECT COUNT(*) FROM plants WHERE name = 'plant with spaces'"),
+        1
+    );
+    assert_eq!(
+        site.q("SELECT COUNT(*) FROM plants WHERE name = 'Sorgho-ü-高粱-🌾'"),
+        1
+    );
     assert_eq!(integrity(&site.db), "ok");
     // A forged log line stays on the line of the message that names it.
     assert!(
@@ -494,7 +569,11 @@ fn bad_input_each_kind_recorded_and_service_keeps_going() {
 /// Runs `phyllo serve` with a config that must be refused; returns stderr.
 fn serve_refused(cfg_text: &str) -> String {
     let site = Site::new("", "");
-    std::fs::write(&site.cfg, cfg_text.replace("$DIR", site.tmp.path().to_str().unwrap())).unwrap();
+    std::fs::write(
+        &site.cfg,
+        cfg_text.replace("$DIR", site.tmp.path().to_str().unwrap()),
+    )
+    .unwrap();
     let out = std::process::Command::new(BIN)
         .args(["serve", "-c"])
         .arg(&site.cfg)
@@ -524,13 +603,19 @@ fn model_with_wrong_contract_is_refused_at_start() {
     // The shipped model with its contract-version metadata key renamed (same length).
     let mut bytes = std::fs::read(common::model()).unwrap();
     let key = b"phyllo.contract_version";
-    let at = bytes.windows(key.len()).position(|w| w == key).expect("metadata key");
+    let at = bytes
+        .windows(key.len())
+        .position(|w| w == key)
+        .expect("metadata key");
     bytes[at + key.len() - 1] = b'X';
     std::fs::write(&model, bytes).unwrap();
     let err = serve_refused(&format!(
         "drop_dir = \"$DIR/drop\"\ndatabase = \"$DIR/state/phyllo.sqlite\"\n[inference]\nmodel = {model:?}\n"
     ));
-    assert!(err.contains("wrong-contract.onnx") && err.contains("contract"), "{err}");
+    assert!(
+        err.contains("wrong-contract.onnx") && err.contains("contract"),
+        "{err}"
+    );
 }
 
 #[test]

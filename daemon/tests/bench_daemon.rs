@@ -81,7 +81,11 @@ fn bench_daemon_on_full_frames() {
     let text = std::fs::read_to_string(&site.cfg).unwrap();
     let text = text
         .lines()
-        .filter(|l| !["stable_secs", "settle_ms", "poll_ms", "rescan_secs"].iter().any(|k| l.starts_with(k)))
+        .filter(|l| {
+            !["stable_secs", "settle_ms", "poll_ms", "rescan_secs"]
+                .iter()
+                .any(|k| l.starts_with(k))
+        })
         .map(|l| {
             if l.starts_with("model =") {
                 format!("model = {model:?}")
@@ -140,7 +144,14 @@ fn bench_daemon_on_full_frames() {
 
     // Sustained throughput: a burst of frames.
     let names: Vec<String> = (0..burst_n)
-        .map(|i| flat_name(&format!("B{:02}", i / 6), 2 + (i / 360) as u32, (i % 60) as u32, (i % 6) as u32 * 36))
+        .map(|i| {
+            flat_name(
+                &format!("B{:02}", i / 6),
+                2 + (i / 360) as u32,
+                (i % 60) as u32,
+                (i % 6) as u32 * 36,
+            )
+        })
         .collect();
     let payloads: Vec<Vec<u8>> = (0..burst_n).map(|i| unique(1_000 + i)).collect();
     let t0 = Instant::now();
@@ -154,7 +165,11 @@ fn bench_daemon_on_full_frames() {
     });
     let last_row = site.q("SELECT COUNT(*) FROM images WHERE path LIKE 'B%' AND state = 'counted'");
     assert_eq!(last_row, burst_n as i64);
-    let last_ms = rows(&site.db, "SELECT MAX(updated_at) FROM images WHERE path LIKE 'B%'")[0].clone();
+    let last_ms = rows(
+        &site.db,
+        "SELECT MAX(updated_at) FROM images WHERE path LIKE 'B%'",
+    )[0]
+    .clone();
     let burst_s = (epoch_ms(&last_ms) - first_close) / 1000.0;
     let daemon_ips = burst_n as f64 / burst_s;
     let rss_mb = d.vm_hwm_kib() as f64 / 1024.0;
@@ -173,7 +188,11 @@ fn bench_daemon_on_full_frames() {
     let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!();
-    println!("phyllo serve on {w}x{h} PNG frames ({} distinct, {cores} cores, load {})", frames.len(), load.trim());
+    println!(
+        "phyllo serve on {w}x{h} PNG frames ({} distinct, {cores} cores, load {})",
+        frames.len(),
+        load.trim()
+    );
     println!("| measure | value |");
     println!("| --- | --- |");
     println!("| sustained images/s (burst of {burst_n}, first close to last row) | {daemon_ips:.2} |");

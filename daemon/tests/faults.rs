@@ -73,9 +73,16 @@ fn assert_exactly_once(site: &Site, n: usize) {
         site.q("SELECT COUNT(*) FROM images WHERE state = 'counted' AND version = 1"),
         n,
         "all counted, none re-versioned; failures: {:?}",
-        rows(&site.db, "SELECT path, error FROM images WHERE state != 'counted'")
+        rows(
+            &site.db,
+            "SELECT path, error FROM images WHERE state != 'counted'"
+        )
     );
-    assert_eq!(site.q("SELECT COUNT(*) FROM observations"), n, "one observation per image");
+    assert_eq!(
+        site.q("SELECT COUNT(*) FROM observations"),
+        n,
+        "one observation per image"
+    );
     assert_eq!(site.q("SELECT COUNT(DISTINCT image_id) FROM observations"), n);
     assert_eq!(
         site.q("SELECT COUNT(*) FROM feed WHERE kind = 'count'"),
@@ -126,7 +133,11 @@ fn kill_9_at_random_moments_loses_and_doubles_nothing() {
         }
         let before = site.q("SELECT COUNT(*) FROM observations");
         std::thread::sleep(rng.ms(100, 2500));
-        assert!(d.alive(), "daemon died on its own; log:\n{}", tail(&site.log_text(), 30));
+        assert!(
+            d.alive(),
+            "daemon died on its own; log:\n{}",
+            tail(&site.log_text(), 30)
+        );
         d.kill9();
         let after = site.q("SELECT COUNT(*) FROM observations");
         if after > before {
@@ -154,7 +165,10 @@ fn kill_9_at_random_moments_loses_and_doubles_nothing() {
         t0.elapsed(),
         log_lines.join("\n")
     );
-    assert!(during_work >= kills / 4, "enough kills hit a daemon at work: {during_work}");
+    assert!(
+        during_work >= kills / 4,
+        "enough kills hit a daemon at work: {during_work}"
+    );
 
     // The reference: the same images through one uninterrupted daemon.
     let reference = Site::new("workers = 2\nintra_threads = 1\nbatch_size = 1\n", "");
@@ -163,9 +177,11 @@ fn kill_9_at_random_moments_loses_and_doubles_nothing() {
     }
     let mut r = reference.serve();
     reference.wait_running(&mut r);
-    reference.wait_for("the uninterrupted run", Duration::from_secs(60 + n as u64), || {
-        reference.q("SELECT COUNT(*) FROM images") >= n as i64
-    });
+    reference.wait_for(
+        "the uninterrupted run",
+        Duration::from_secs(60 + n as u64),
+        || reference.q("SELECT COUNT(*) FROM images") >= n as i64,
+    );
     assert!(r.term().success());
     assert_exactly_once(&reference, n);
     let counts = |db: &std::path::Path| {
@@ -228,7 +244,10 @@ fn sigterm_under_load_loses_nothing() {
     }
     assert_exactly_once(&site, n);
     assert!(site.log_text().contains("signal received, shutting down"));
-    assert!(at_stop[0] < n as i64, "the first SIGTERM came under load: {at_stop:?}");
+    assert!(
+        at_stop[0] < n as i64,
+        "the first SIGTERM came under load: {at_stop:?}"
+    );
     eprintln!("sigterm: images recorded at each stop {at_stop:?} of {n}");
 }
 
@@ -282,7 +301,9 @@ fn readers_do_not_block_writers() {
             Some((c, stdin))
         }
         Err(e) => {
-            eprintln!("SKIPPED (part): no sqlite3 shell ({e}); the held rusqlite transaction covers the case");
+            eprintln!(
+                "SKIPPED (part): no sqlite3 shell ({e}); the held rusqlite transaction covers the case"
+            );
             None
         }
     };
@@ -295,17 +316,27 @@ fn readers_do_not_block_writers() {
         drop_file(&site.drop.join(name), bytes, i % 2 == 0);
         if i % 5 == 0 {
             let out = site.phyllo(&["export", "--what", "images", "--out", out_csv.to_str().unwrap()]);
-            assert!(out.status.success(), "export: {}", String::from_utf8_lossy(&out.stderr));
+            assert!(
+                out.status.success(),
+                "export: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
             exports += 1;
         }
         std::thread::sleep(Duration::from_millis(50));
     }
-    site.wait_for("every image despite the readers", Duration::from_secs(60 + 2 * n as u64), || {
-        site.q("SELECT COUNT(*) FROM observations") >= n as i64
-    });
+    site.wait_for(
+        "every image despite the readers",
+        Duration::from_secs(60 + 2 * n as u64),
+        || site.q("SELECT COUNT(*) FROM observations") >= n as i64,
+    );
     let took = t0.elapsed();
     // Snapshot isolation: the reader still sees the database as it was.
-    assert_eq!(count_held(), snapshot, "the held read transaction kept its snapshot");
+    assert_eq!(
+        count_held(),
+        snapshot,
+        "the held read transaction kept its snapshot"
+    );
     held.conn().execute_batch("COMMIT").unwrap();
     if let Some((c, mut stdin)) = shell.take() {
         writeln!(stdin, "SELECT COUNT(*) FROM images; COMMIT;").unwrap();
@@ -313,8 +344,16 @@ fn readers_do_not_block_writers() {
         let out = c.wait_with_output().unwrap();
         let text = String::from_utf8_lossy(&out.stdout);
         let counts: Vec<&str> = text.lines().collect();
-        assert_eq!(counts.len(), 2, "sqlite3 output: {text} {}", String::from_utf8_lossy(&out.stderr));
-        assert_eq!(counts[0], counts[1], "the shell's snapshot held while {n} images landed");
+        assert_eq!(
+            counts.len(),
+            2,
+            "sqlite3 output: {text} {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert_eq!(
+            counts[0], counts[1],
+            "the shell's snapshot held while {n} images landed"
+        );
     }
     std::thread::sleep(Duration::from_millis(1500)); // tail polls
     let st = d.term();
@@ -351,7 +390,9 @@ fn disk_full_on_state_dir_then_recovers() {
         .status()
         .is_ok_and(|s| s.success());
     if !mounted {
-        eprintln!("SKIPPED: cannot mount a tmpfs on the state directory (not root, or no mount in this sandbox)");
+        eprintln!(
+            "SKIPPED: cannot mount a tmpfs on the state directory (not root, or no mount in this sandbox)"
+        );
         return;
     }
     struct Unmount(std::path::PathBuf);
@@ -386,15 +427,20 @@ fn disk_full_on_state_dir_then_recovers() {
         site.log_text().contains("full")
     });
     let stuck = site.q("SELECT COUNT(*) FROM observations");
-    assert!(stuck < n as i64, "the full disk stopped progress ({stuck} of {n})");
+    assert!(
+        stuck < n as i64,
+        "the full disk stopped progress ({stuck} of {n})"
+    );
     std::thread::sleep(Duration::from_secs(3));
     assert!(d.alive(), "the daemon survives a full disk");
     assert_eq!(integrity(&site.db), "ok", "no corruption while full");
 
     std::fs::remove_file(&filler).unwrap();
-    site.wait_for("every image after space returned", Duration::from_secs(90 + 2 * n as u64), || {
-        site.q("SELECT COUNT(*) FROM observations") >= n as i64
-    });
+    site.wait_for(
+        "every image after space returned",
+        Duration::from_secs(90 + 2 * n as u64),
+        || site.q("SELECT COUNT(*) FROM observations") >= n as i64,
+    );
     std::thread::sleep(Duration::from_millis(500));
     let st = d.term();
     assert!(st.success());
@@ -420,7 +466,11 @@ fn nothing_leaves_the_drop_directory() {
     std::fs::create_dir_all(outside.join("tree")).unwrap();
     let secret = outside.join("secret.png");
     std::fs::write(&secret, small_png(7, 64)).unwrap();
-    std::fs::write(outside.join("tree").join(flat_name("FARAWAY", 1, 0, 0)), small_png(8, 64)).unwrap();
+    std::fs::write(
+        outside.join("tree").join(flat_name("FARAWAY", 1, 0, 0)),
+        small_png(8, 64),
+    )
+    .unwrap();
     let inside = flat_name("IN", 1, 0, 0);
     std::fs::write(site.drop.join(&inside), small_png(9, 64)).unwrap();
     let link_out = flat_name("LINKOUT", 1, 0, 0);
@@ -443,12 +493,19 @@ fn nothing_leaves_the_drop_directory() {
     std::thread::sleep(Duration::from_secs(3)); // a rescan, in case it would find more
     assert!(d.term().success());
 
-    let state = |p: &str| rows(&site.db, &format!("SELECT state, error FROM images WHERE path = '{p}'"));
+    let state = |p: &str| {
+        rows(
+            &site.db,
+            &format!("SELECT state, error FROM images WHERE path = '{p}'"),
+        )
+    };
     for l in [&link_out, &link_late] {
         let r = state(l);
         assert_eq!(r.len(), 1, "{l}: {r:?}");
         assert!(
-            r[0].starts_with("failed|") && r[0].contains("outside the drop directory") && r[0].contains(l.as_str()),
+            r[0].starts_with("failed|")
+                && r[0].contains("outside the drop directory")
+                && r[0].contains(l.as_str()),
             "{l}: {r:?}"
         );
     }
@@ -501,7 +558,10 @@ fn nothing_leaves_the_drop_directory() {
 #[test]
 fn deleted_overwritten_and_recreated() {
     // A long settle time makes "deleted before processing" deterministic.
-    let site = Site::new("workers = 1\nintra_threads = 1\n", "settle_ms = 1500\nrescan_secs = 0\n");
+    let site = Site::new(
+        "workers = 1\nintra_threads = 1\n",
+        "settle_ms = 1500\nrescan_secs = 0\n",
+    );
     let mut d = site.serve();
     site.wait_running(&mut d);
     let gone: Vec<String> = (0..5).map(|i| flat_name("GONE", 1, i, 0)).collect();
@@ -518,7 +578,11 @@ fn deleted_overwritten_and_recreated() {
         site.q("SELECT COUNT(*) FROM observations") == 1
     });
     std::thread::sleep(Duration::from_millis(2000));
-    assert_eq!(site.q("SELECT COUNT(*) FROM images"), 1, "deleted files leave no row");
+    assert_eq!(
+        site.q("SELECT COUNT(*) FROM images"),
+        1,
+        "deleted files leave no row"
+    );
     assert_eq!(site.q("SELECT COUNT(*) FROM images WHERE path LIKE 'GONE%'"), 0);
 
     // Overwrite in place with new content: version 2.
@@ -527,7 +591,11 @@ fn deleted_overwritten_and_recreated() {
         site.q("SELECT MAX(version) FROM images") == 2
     });
     assert_eq!(site.q("SELECT COUNT(*) FROM images WHERE superseded = 1"), 1);
-    assert_eq!(site.q("SELECT n_counts FROM sessions"), 1, "only the new version is in the timeline");
+    assert_eq!(
+        site.q("SELECT n_counts FROM sessions"),
+        1,
+        "only the new version is in the timeline"
+    );
     // Overwrite with the same bytes again: nothing new.
     drop_file(&site.drop.join(&keep), &small_png(601, 64), true);
     std::thread::sleep(Duration::from_millis(2500));

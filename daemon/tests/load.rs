@@ -13,7 +13,7 @@
 //! `PHYLLO_LOAD_COUNT_EVERY`-th file (default 25) is a real image the model
 //! counts.
 //!
-//! Knobs: `PHYLLO_LOAD_FILES` (default 400; the full run is 10000),
+//! Knobs: `PHYLLO_LOAD_FILES` (default 1000; the full run is 10000),
 //! `PHYLLO_LOAD_COUNT_EVERY` (25), `PHYLLO_LOAD_MAX_RSS_MB` (300). The full
 //! run: `scripts/load.sh` (release build, 10,000 files).
 
@@ -25,7 +25,7 @@ use common::*;
 
 #[test]
 fn burst_of_files_all_processed_with_bounded_memory() {
-    let n: usize = env_or("PHYLLO_LOAD_FILES", 400);
+    let n: usize = env_or("PHYLLO_LOAD_FILES", 1000);
     let every: usize = env_or("PHYLLO_LOAD_COUNT_EVERY", 25).max(1);
     let max_rss_mb: u64 = env_or("PHYLLO_LOAD_MAX_RSS_MB", 300);
     let site = Site::new("workers = 2\nintra_threads = 2\n", "rescan_secs = 0\n");
@@ -92,4 +92,56 @@ fn burst_of_files_all_processed_with_bounded_memory() {
         "peak RSS {:.1} MB > {max_rss_mb} MB",
         peak_rss as f64 / 1024.0
     );
+}
+
+/// The inotify queue overflows: the daemon is frozen with SIGSTOP while more
+/// files land than the kernel queue holds (`fs.inotify.max_queued_events`,
+/// 16384 by default; each written file makes three events), then thawed.
+/// The kernel drops events and says so; the daemon rescans, and every file is
+/// processed once, with periodic rescans off. Knob: `PHYLLO_OVERFLOW_FILES`
+/// (default: enough files to overflow the queue, at least 6000).
+#[test]
+fn inotify_overflow_loses_nothing() {
+    let limit: usize = std::fs::read_to_string("/proc/sys/fs/inotify/max_queued_events")
+        .ok()
+        .and_then(|s| s.trim().parse().ok())
+        .unwrap_or(16384);
+    let n: usize = env_or("PHYLLO_OVERFLOW_FILES", (limit / 3 + 600).max(6000));
+    let site = Site::new("workers = 2\nintra_threads = 1\n", "rescan_secs = 0\n");
+    let mut d = site.serve();
+    site.wait_running(&mut d);
+    signal(d.pid(), "STOP");
+    let bytes = small_png(1, 8);
+    for i in 0..n {
+        // Not-quite-identical content keeps each file its own record.
+        let mut b = bytes.clone();
+        b.extend(i.to_le_bytes());
+        std::fs::write(
+            site.drop
+                .join(format!("O{i:05}_2018-04-01_10-00-00_Vis_SV_0.png")),
+            b,
+        )
+        .unwrap();
+    }
+    signal(d.pid(), "CONT");
+    let t0 = Instant::now();
+    site.wait_for(
+        &format!("{n} files after the overflow"),
+        Duration::from_secs(120 + n as u64 / 20),
+        || site.q("SELECT COUNT(*) FROM images") >= n as i64,
+    );
+    let took = t0.elapsed();
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(d.term().success());
+    assert_eq!(site.q("SELECT COUNT(*) FROM images"), n as i64);
+    assert_eq!(site.q("SELECT COUNT(DISTINCT path) FROM images"), n as i64);
+    assert_eq!(integrity(&site.db), "ok");
+    let overflowed = site.log_text().contains("overflowed");
+    eprintln!("overflow: {n} files while stopped (queue limit {limit}), overflow reported: {overflowed}, all processed in {took:.1?}");
+    if 3 * n > limit {
+        assert!(
+            overflowed,
+            "the kernel queue must have overflowed ({n} files, limit {limit})"
+        );
+    }
 }

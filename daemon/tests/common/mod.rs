@@ -19,7 +19,10 @@ pub const BIN: &str = env!("CARGO_BIN_EXE_phyllo");
 
 /// The repository root.
 pub fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
 }
 
 /// The model the daemon runs: `PHYLLO_TEST_MODEL` (relative to the repository
@@ -67,15 +70,27 @@ impl Site {
         let db = state.join("phyllo.sqlite");
         let cfg = tmp.path().join("phyllo.toml");
         // Fast intake timings, each overridable by a line of `watch_extra`.
-        let mut watch: Vec<String> = ["stable_secs = 1.0", "settle_ms = 100", "poll_ms = 50", "rescan_secs = 2"]
-            .iter()
-            .filter(|d| {
-                let key = d.split('=').next().unwrap().trim();
-                !watch_extra.lines().any(|l| l.split('=').next().unwrap().trim() == key)
-            })
-            .map(|d| d.to_string())
-            .collect();
-        watch.extend(watch_extra.lines().filter(|l| !l.trim().is_empty()).map(String::from));
+        let mut watch: Vec<String> = [
+            "stable_secs = 1.0",
+            "settle_ms = 100",
+            "poll_ms = 50",
+            "rescan_secs = 2",
+        ]
+        .iter()
+        .filter(|d| {
+            let key = d.split('=').next().unwrap().trim();
+            !watch_extra
+                .lines()
+                .any(|l| l.split('=').next().unwrap().trim() == key)
+        })
+        .map(|d| d.to_string())
+        .collect();
+        watch.extend(
+            watch_extra
+                .lines()
+                .filter(|l| !l.trim().is_empty())
+                .map(String::from),
+        );
         std::fs::write(
             &cfg,
             format!(
@@ -160,11 +175,15 @@ impl Site {
         let t0 = Instant::now();
         loop {
             if let Some(st) = d.child.as_mut().unwrap().try_wait().unwrap() {
-                panic!("phyllo serve exited early ({st}); log:\n{}", tail(&self.log_text(), 40));
+                panic!(
+                    "phyllo serve exited early ({st}); log:\n{}",
+                    tail(&self.log_text(), 40)
+                );
             }
             if let Ok(s) = Store::open_read_only(&self.db) {
                 if let Ok(svc) = s.service() {
-                    if svc.get("pid") == Some(&pid) && svc.get("state").map(String::as_str) == Some("running") {
+                    if svc.get("pid") == Some(&pid) && svc.get("state").map(String::as_str) == Some("running")
+                    {
                         return;
                     }
                 }
