@@ -195,7 +195,7 @@ impl Intake {
     }
 }
 
-fn stat(path: &PathBuf) -> (u64, Option<SystemTime>) {
+fn stat(path: &std::path::Path) -> (u64, Option<SystemTime>) {
     match super::stat_or_link(path) {
         Ok(m) if m.is_file() || m.file_type().is_symlink() => {
             (m.len(), m.modified().ok().or(Some(SystemTime::UNIX_EPOCH)))
