@@ -335,4 +335,29 @@ mod tests {
         assert_eq!(View::parse("top"), View::Top(90));
         assert_eq!(View::parse("side_72"), View::Side(72));
     }
+
+    #[test]
+    fn control_characters_refused_in_plant_ids_and_escaped_in_messages() {
+        let p = defaults();
+        let e = p
+            .parse(Path::new("EVIL\nline_2018-04-02_10-00-00_Vis_SV_0.png"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("control characters") && e.contains("EVIL\\nline"),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
+        let e = p.parse(Path::new("x\u{1b}[2J.png")).unwrap_err().to_string();
+        assert!(!e.contains('\u{1b}') && e.contains("\\u{1b}"), "{e}");
+        // Quotes and spaces are data, not control characters.
+        assert_eq!(
+            p.parse(Path::new(
+                "x'); DROP TABLE images;--_2018-04-02_10-00-00_Vis_SV_0.png"
+            ))
+            .unwrap()
+            .plant,
+            "x'); DROP TABLE images;--"
+        );
+    }
 }
