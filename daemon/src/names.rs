@@ -150,16 +150,22 @@ impl NamePatterns {
     /// and every pattern tried.
     pub fn parse(&self, rel: &Path) -> anyhow::Result<ParsedName> {
         let s = rel.to_string_lossy().replace('\\', "/");
+        // Control characters (a newline in a file name) would forge lines in the
+        // log, `tail` and the CSV exports: shown escaped, and refused in plant ids.
+        let shown = printable(&s);
         for (name, re) in &self.patterns {
             let Some(c) = re.captures(&s) else { continue };
             let get = |g: &str| c.name(g).map(|m| m.as_str());
             let plant = get("plant").unwrap_or_default().to_string();
             let taken_at = parse_datetime(get("date").unwrap_or_default(), get("time").unwrap_or_default())
                 .with_context(|| {
-                format!("file {s}: pattern '{name}' matched but the date/time is invalid")
+                format!("file {shown}: pattern '{name}' matched but the date/time is invalid")
             })?;
             if plant.is_empty() {
-                bail!("file {s}: pattern '{name}' matched an empty plant id");
+                bail!("file {shown}: pattern '{name}' matched an empty plant id");
+            }
+            if plant.chars().any(char::is_control) {
+                bail!("file {shown}: pattern '{name}' matched a plant id with control characters");
             }
             let angle = get("angle").and_then(|a| a.parse::<u16>().ok());
             let view = match get("kind").map(|k| k.to_ascii_lowercase()) {
@@ -179,10 +185,24 @@ impl NamePatterns {
             .map(|(n, re)| format!("{n} = /{}/", re.as_str()))
             .collect();
         bail!(
-            "file name {s} matches none of the patterns tried: {}",
+            "file name {shown} matches none of the patterns tried: {}",
             tried.join("; ")
         )
     }
+}
+
+/// `s` with control characters escaped (`\n`, `\u{1b}`), for messages: a
+/// file name must not be able to forge log lines.
+pub fn printable(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_debug().collect()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
 }
 
 /// Parses `YYYY-MM-DD` plus `HH-MM-SS[.fff]` (also `HH:MM:SS`, `HHMMSS`).
@@ -314,5 +334,30 @@ mod tests {
         assert_eq!(View::parse("Vis_SV_36"), View::Side(36));
         assert_eq!(View::parse("top"), View::Top(90));
         assert_eq!(View::parse("side_72"), View::Side(72));
+    }
+
+    #[test]
+    fn control_characters_refused_in_plant_ids_and_escaped_in_messages() {
+        let p = defaults();
+        let e = p
+            .parse(Path::new("EVIL\nline_2018-04-02_10-00-00_Vis_SV_0.png"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("control characters") && e.contains("EVIL\\nline"),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
+        let e = p.parse(Path::new("x\u{1b}[2J.png")).unwrap_err().to_string();
+        assert!(!e.contains('\u{1b}') && e.contains("\\u{1b}"), "{e}");
+        // Quotes and spaces are data, not control characters.
+        assert_eq!(
+            p.parse(Path::new(
+                "x'); DROP TABLE images;--_2018-04-02_10-00-00_Vis_SV_0.png"
+            ))
+            .unwrap()
+            .plant,
+            "x'); DROP TABLE images;--"
+        );
     }
 }

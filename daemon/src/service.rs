@@ -181,7 +181,7 @@ fn spawn_scan(
         let files = scan::scan(&filter, &dir);
         let mut sent = 0;
         for path in &files {
-            let known = match (&store, filter.rel(path), std::fs::metadata(path)) {
+            let known = match (&store, filter.rel(path), crate::source::stat_or_link(path)) {
                 (Ok(s), Some(rel), Ok(meta)) => s
                     .is_known(&rel, meta.len(), &crate::worker::mtime_string(&meta))
                     .unwrap_or(false),

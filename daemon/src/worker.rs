@@ -12,7 +12,6 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
-use anyhow::Context;
 use sha2::{Digest, Sha256};
 use tokio::sync::mpsc;
 
@@ -120,22 +119,156 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
     Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// Largest file a worker reads, in bytes. A LemnaTec frame is 5–15 MB as PNG
+/// and about 15 MB as uncompressed TIFF; the decoder's own limits stop at 40
+/// megapixels. Anything bigger is refused before it is read, so a huge or
+/// endless file in the drop directory cannot exhaust memory.
+pub const MAX_FILE_BYTES: u64 = 256 << 20;
+
+/// Why a file was not read: the file itself is the problem (it is recorded
+/// as failed), as opposed to phyllo's own trouble (logged and retried).
+struct Refused {
+    error: String,
+    retry: bool,
+}
+
+/// What reading a job's file gave.
+enum Read {
+    /// The content and the metadata of the opened file.
+    Bytes(Vec<u8>, std::fs::Metadata),
+    /// The file is gone: nothing to record.
+    Vanished,
+    /// The file cannot or must not be read; recorded against it.
+    Refused(Refused, Option<std::fs::Metadata>),
+}
+
+/// Reads a job's file, refusing anything that resolves outside the drop
+/// directory (a symbolic link, or a linked directory, pointing elsewhere),
+/// symbolic-link loops, non-regular files and files over [`MAX_FILE_BYTES`].
+///
+/// The check is made on the *opened* file (`/proc/self/fd`), not on the path,
+/// so a link swapped in between the check and the read cannot smuggle a file
+/// from outside in. Links that stay inside the drop directory are followed.
+fn read_inside(root: &Path, job: &Job) -> Read {
+    let name = crate::names::printable(&job.rel);
+    let link_meta = std::fs::symlink_metadata(&job.path).ok();
+    let refuse = |error: String, retry: bool| Read::Refused(Refused { error, retry }, link_meta.clone());
+    let file = match std::fs::File::open(&job.path) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return match &link_meta {
+                Some(m) if m.file_type().is_symlink() => refuse(
+                    format!("{name}: dangling symbolic link (its target does not exist)"),
+                    false,
+                ),
+                _ => Read::Vanished,
+            };
+        }
+        Err(e) if e.raw_os_error() == Some(40) => {
+            // ELOOP
+            return refuse(format!("{name}: symbolic link loop, not followed"), false);
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::PermissionDenied => {
+            // The operator may fix the permissions: retried up to max_attempts.
+            return refuse(format!("{name}: permission denied: {e}"), true);
+        }
+        Err(e) => return refuse(format!("{name}: cannot open: {e}"), true),
+    };
+    let meta = match file.metadata() {
+        Ok(m) => m,
+        Err(e) => return refuse(format!("{name}: cannot stat: {e}"), true),
+    };
+    if !meta.is_file() {
+        return refuse(format!("{name}: not a regular file"), false);
+    }
+    let real = std::fs::read_link(format!(
+        "/proc/self/fd/{}",
+        std::os::fd::AsRawFd::as_raw_fd(&file)
+    ))
+    .or_else(|_| std::fs::canonicalize(&job.path));
+    let root = std::fs::canonicalize(root).unwrap_or_else(|_| root.to_path_buf());
+    match real {
+        Ok(real) if real.starts_with(&root) => {}
+        Ok(real) => {
+            return refuse(
+                format!(
+                    "{}: resolves to {}, outside the drop directory {}: not read",
+                    name,
+                    real.display(),
+                    root.display()
+                ),
+                false,
+            )
+        }
+        Err(e) => return refuse(format!("{name}: cannot resolve its real path: {e}"), true),
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return refuse(
+            format!(
+                "{}: {} bytes is larger than the {} MiB limit for one image",
+                name,
+                meta.len(),
+                MAX_FILE_BYTES >> 20
+            ),
+            false,
+        );
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    // take(): the file may grow between the stat and the read.
+    match std::io::Read::read_to_end(&mut std::io::Read::take(&file, MAX_FILE_BYTES + 1), &mut bytes) {
+        Ok(_) if bytes.len() as u64 > MAX_FILE_BYTES => refuse(
+            format!(
+                "{}: larger than the {} MiB limit for one image",
+                name,
+                MAX_FILE_BYTES >> 20
+            ),
+            false,
+        ),
+        Ok(_) => Read::Bytes(bytes, meta),
+        Err(e) => refuse(format!("{name}: read error: {e}"), true),
+    }
+}
+
 /// Processes one file. Returns what the store did, `None` if it was skipped.
 pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<Option<Recorded>> {
-    let meta = match std::fs::metadata(&job.path) {
-        Ok(m) => m,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+    let (bytes, meta) = match read_inside(&ctx.config.drop_dir, job) {
+        Read::Bytes(b, m) => (b, m),
+        Read::Vanished => {
             tracing::debug!("{} vanished before it was read", job.rel);
             return Ok(None);
         }
-        Err(e) => return Err(e).with_context(|| format!("stat {}", job.path.display())),
+        Read::Refused(r, link_meta) => {
+            // Size and mtime as the intake and scans see them (following links where
+            // possible), so that rescans recognise the file as done.
+            let seen = std::fs::metadata(&job.path).ok().or(link_meta);
+            let facts = FileFacts {
+                rel: job.rel.clone(),
+                size: seen.as_ref().map_or(0, |m| m.len()),
+                mtime: Some(seen.as_ref().map(mtime_string).unwrap_or_default()),
+                // Not the content (it was not read): a stable marker of the refusal, so
+                // the same refusal is recognised as unchanged and not recorded twice.
+                sha256: sha256_hex(format!("phyllo-refused:{}", r.error).as_bytes()),
+            };
+            if let Precheck::Skip(why) = store.precheck(&facts)? {
+                tracing::debug!("skip: {why}");
+                ctx.stats.skipped.fetch_add(1, Ordering::Relaxed);
+                return Ok(None);
+            }
+            tracing::warn!("{}", r.error);
+            let recorded = store.record(
+                &facts,
+                Outcome::Failed {
+                    name: None,
+                    error: r.error,
+                    retry: r.retry,
+                },
+            )?;
+            ctx.stats.failed.fetch_add(1, Ordering::Relaxed);
+            *ctx.stats.last.lock().expect("last lock") = Some(job.rel.clone());
+            return Ok(Some(recorded));
+        }
     };
     let mtime = mtime_string(&meta);
-    let bytes = match std::fs::read(&job.path) {
-        Ok(b) => b,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => return Err(e).with_context(|| format!("reading {}", job.path.display())),
-    };
     let facts = FileFacts {
         rel: job.rel.clone(),
         size: bytes.len() as u64,

@@ -216,7 +216,7 @@ fn list_frames(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
 }
 
 /// Writes `n` full-size 2454x2056 PNG frames made from the images in `source`.
-fn make_frames(source: &Path, out: &Path, n: usize) -> anyhow::Result<()> {
+pub fn make_frames(source: &Path, out: &Path, n: usize) -> anyhow::Result<()> {
     let mut imgs: Vec<PathBuf> = std::fs::read_dir(source)
         .with_context(|| {
             format!(
@@ -248,7 +248,7 @@ fn make_frames(source: &Path, out: &Path, n: usize) -> anyhow::Result<()> {
 }
 
 /// Runs `models/reference_pipeline.py` and returns its JSON summary.
-fn python_reference(
+pub fn python_reference(
     python: &str,
     model: &Path,
     frames: &Path,

@@ -161,7 +161,7 @@ impl Intake {
             let Some(rel) = self.filter.rel(&path) else {
                 continue;
             };
-            let meta = match std::fs::metadata(&path) {
+            let meta = match super::stat_or_link(&path) {
                 Ok(m) => m,
                 Err(_) => continue,
             };
@@ -195,9 +195,11 @@ impl Intake {
     }
 }
 
-fn stat(path: &PathBuf) -> (u64, Option<SystemTime>) {
-    match std::fs::metadata(path) {
-        Ok(m) if m.is_file() => (m.len(), m.modified().ok().or(Some(SystemTime::UNIX_EPOCH))),
+fn stat(path: &std::path::Path) -> (u64, Option<SystemTime>) {
+    match super::stat_or_link(path) {
+        Ok(m) if m.is_file() || m.file_type().is_symlink() => {
+            (m.len(), m.modified().ok().or(Some(SystemTime::UNIX_EPOCH)))
+        }
         _ => (0, None),
     }
 }

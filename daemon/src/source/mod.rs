@@ -32,6 +32,17 @@ pub enum Candidate {
     RescanAll,
 }
 
+/// The file's metadata, following symbolic links; for a link that cannot be
+/// followed (a loop, a missing target) the link's own metadata. Such links
+/// still reach a worker, which records why they were not read instead of
+/// leaving them silently unexplained.
+pub fn stat_or_link(path: &Path) -> std::io::Result<std::fs::Metadata> {
+    std::fs::metadata(path).or_else(|e| match std::fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_symlink() => Ok(m),
+        _ => Err(e),
+    })
+}
+
 /// Which files are images phyllo should look at.
 #[derive(Debug, Clone)]
 pub struct Filter {

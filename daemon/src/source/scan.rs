@@ -23,8 +23,13 @@ pub fn scan(filter: &Filter, dir: &Path) -> Vec<PathBuf> {
         };
         for entry in entries.flatten() {
             let path = entry.path();
-            // file_type() does not follow symlinks; metadata() does, so links to images count.
+            // file_type() does not follow symlinks; metadata() does, so links to images are
+            // candidates (the worker refuses those that lead out of the drop directory).
             let Ok(meta) = std::fs::metadata(&path) else {
+                // A link that cannot be followed (loop, missing target): the worker records why.
+                if entry.file_type().is_ok_and(|t| t.is_symlink()) && filter.wants_file(&path) {
+                    out.push(path);
+                }
                 continue;
             };
             if meta.is_dir() {

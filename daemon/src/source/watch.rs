@@ -7,6 +7,9 @@
 
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::SystemTime;
 
 use notify::event::{AccessKind, AccessMode, CreateKind, ModifyKind, RenameMode};
 use notify::{Event, EventKind, RecommendedWatcher, RecursiveMode, Watcher};
@@ -18,7 +21,16 @@ use super::{Candidate, Filter};
 pub struct Watch {
     _watcher: RecommendedWatcher,
     root: PathBuf,
-    root_id: (u64, u64),
+    root_id: (u64, u64, Option<SystemTime>),
+    /// Set when inotify reports the root itself removed or moved away.
+    root_gone: Arc<AtomicBool>,
+}
+
+/// What identifies the directory at `path`: device, inode and birth time. The
+/// birth time matters because a directory deleted and recreated at once very
+/// often gets the same inode number back (ext4 does this).
+fn dir_id(meta: &std::fs::Metadata) -> (u64, u64, Option<SystemTime>) {
+    (meta.dev(), meta.ino(), meta.created().ok())
 }
 
 impl Watch {
@@ -27,7 +39,20 @@ impl Watch {
         let root = filter.root().to_path_buf();
         let meta = std::fs::metadata(&root)
             .map_err(|e| anyhow::anyhow!("drop directory {}: {e}", root.display()))?;
+        let root_gone = Arc::new(AtomicBool::new(false));
+        let (gone, watched) = (root_gone.clone(), root.clone());
         let mut watcher = notify::recommended_watcher(move |res: notify::Result<Event>| {
+            if let Ok(e) = &res {
+                let about_root = e.paths.iter().any(|p| p == &watched);
+                if about_root
+                    && matches!(
+                        e.kind,
+                        EventKind::Remove(_) | EventKind::Modify(ModifyKind::Name(RenameMode::From))
+                    )
+                {
+                    gone.store(true, Ordering::SeqCst);
+                }
+            }
             for c in classify(&filter, res) {
                 // This runs on notify's own thread. When the intake falls behind, this blocks and
                 // the kernel queue absorbs events; if it overflows, we get a rescan event.
@@ -42,15 +67,19 @@ impl Watch {
         Ok(Watch {
             _watcher: watcher,
             root,
-            root_id: (meta.dev(), meta.ino()),
+            root_id: dir_id(&meta),
+            root_gone,
         })
     }
 
     /// True if the watched directory is gone or was replaced by another one
     /// (deleted and recreated): the watch must be restarted.
     pub fn is_stale(&self) -> bool {
+        if self.root_gone.load(Ordering::SeqCst) {
+            return true;
+        }
         match std::fs::metadata(&self.root) {
-            Ok(m) => (m.dev(), m.ino()) != self.root_id,
+            Ok(m) => dir_id(&m) != self.root_id,
             Err(_) => true,
         }
     }
