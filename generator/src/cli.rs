@@ -57,6 +57,12 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Convert a rendered dataset to COCO panoptic format (DIR/coco/), for
+    /// detectron2 or mmdetection.
+    Coco {
+        /// Dataset folder (with manifest.jsonl).
+        dir: PathBuf,
+    },
     /// Render plants growing over days, as facility-named camera frames + truth.csv.
     Sequence {
         /// Output folder (e.g. the daemon's watch folder).
@@ -389,6 +395,17 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 mesh.tris.len(),
                 mesh.groups.len()
             );
+            Ok(())
+        }
+        Command::Coco { dir } => {
+            let summary = crate::coco::export(&dir)?;
+            for (split, n) in &summary.images {
+                println!(
+                    "{split}: {n} images -> {}",
+                    dir.join("coco").join(format!("panoptic_{split}.json")).display()
+                );
+            }
+            println!("{} segments", summary.segments);
             Ok(())
         }
         Command::Presets { files } => {

@@ -9,6 +9,7 @@
 
 pub mod bench;
 pub mod cli;
+pub mod coco;
 pub mod dataset;
 pub mod label;
 pub mod mesh;

@@ -409,3 +409,64 @@ fn dataset_plants_span_the_papers_ranges() {
         ages.iter().cloned().fold(f32::MIN, f32::max) - ages.iter().cloned().fold(f32::MAX, f32::min);
     assert!(spread > 20.0, "ages should spread over weeks: {spread}");
 }
+
+#[test]
+fn coco_export_round_trips_the_panoptic_labels() {
+    let dir = tempfile::tempdir().unwrap();
+    dataset::run(&args(dir.path(), (0, 1))).unwrap();
+    let summary = phyllo_gen::coco::export(dir.path()).unwrap();
+    let rows = read_rows(&dir.path().join("manifest.jsonl"));
+    assert_eq!(summary.images.values().sum::<usize>(), rows.len());
+    let c = Contract::embedded();
+    let mut checked = 0;
+    for (split, n) in &summary.images {
+        let doc: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join(format!("coco/panoptic_{split}.json"))).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(doc["images"].as_array().unwrap().len(), *n);
+        let cats: Vec<u64> = doc["categories"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c["id"].as_u64().unwrap())
+            .collect();
+        assert_eq!(cats, vec![1, 2, 3]);
+        for (img, ann) in doc["images"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(doc["annotations"].as_array().unwrap())
+        {
+            assert_eq!(img["id"], ann["image_id"]);
+            let row = rows
+                .iter()
+                .find(|r| r.image == img["file_name"].as_str().unwrap())
+                .unwrap();
+            let label = image::open(dir.path().join(&row.label)).unwrap().into_luma16();
+            let png = image::open(
+                dir.path()
+                    .join(format!("coco/panoptic_{split}"))
+                    .join(ann["file_name"].as_str().unwrap()),
+            )
+            .unwrap()
+            .into_rgb8();
+            // Every pixel's COCO segment id is its contract label value (0 = void).
+            for (l, p) in label.pixels().zip(png.pixels()) {
+                let id = u32::from(p.0[0]) + 256 * u32::from(p.0[1]) + 65536 * u32::from(p.0[2]);
+                let (class, _) = c.decode_label(l.0[0]);
+                assert_eq!(id, if class == 0 { 0 } else { u32::from(l.0[0]) });
+            }
+            let segs = ann["segments_info"].as_array().unwrap();
+            let area: u64 = segs.iter().map(|s| s["area"].as_u64().unwrap()).sum();
+            assert_eq!(
+                area as usize,
+                label.pixels().filter(|p| c.decode_label(p.0[0]).0 != 0).count()
+            );
+            let leaves = segs.iter().filter(|s| s["category_id"] == LEAF).count();
+            assert_eq!(leaves, row.visible_leaf_count as usize);
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, rows.len());
+}
