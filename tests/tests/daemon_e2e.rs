@@ -82,6 +82,35 @@ fn kill_term(child: &Child) {
         .success());
 }
 
+/// Emergence-date errors (days, predicted minus truth) of the exported
+/// `events` against `truth.csv`, matched by plant and leaf number, and how many
+/// truth emergences are dateable (after a plant's first imaging day).
+fn emergence_errors(
+    truth: &[BTreeMap<String, String>],
+    events: &[BTreeMap<String, String>],
+) -> (Vec<f64>, usize) {
+    let mut errs = Vec::new();
+    let mut dateable = 0;
+    let plants: std::collections::BTreeSet<String> = truth.iter().map(|t| t["plant"].clone()).collect();
+    for p in plants {
+        let first = truth.iter().find(|t| t["plant"] == p).unwrap()["date"].clone();
+        let last = truth.iter().rev().find(|t| t["plant"] == p).unwrap();
+        let dates: Vec<&str> = last["emergence_dates"]
+            .split(';')
+            .filter(|s| !s.is_empty())
+            .collect();
+        // Only emergences after the first imaging day can be dated from images.
+        dateable += dates.iter().filter(|d| **d > first.as_str()).count();
+        for e in events.iter().filter(|e| e["plant"] == p) {
+            let leaf: usize = e["leaf"].parse().unwrap();
+            if let Some(d) = dates.get(leaf - 1) {
+                errs.push(days_between(d, &e["emerged_at"]));
+            }
+        }
+    }
+    (errs, dateable)
+}
+
 fn read_csv(path: &Path) -> Vec<BTreeMap<String, String>> {
     let mut r = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let headers = r.headers().unwrap().clone();
@@ -297,28 +326,7 @@ fn daemon_counts_a_generated_sequence() {
         sq_living += (f(row, "living") - f(t, "living_leaves")).powi(2);
         sq_emerged += (f(row, "leaves_emerged") - f(t, "leaves_emerged")).powi(2);
     }
-    let mut errs = Vec::new();
-    let mut truth_events = 0;
-    for p in truth
-        .iter()
-        .map(|t| t["plant"].clone())
-        .collect::<std::collections::BTreeSet<_>>()
-    {
-        let first = truth.iter().find(|t| t["plant"] == p).unwrap()["date"].clone();
-        let last = truth.iter().rev().find(|t| t["plant"] == p).unwrap();
-        let dates: Vec<&str> = last["emergence_dates"]
-            .split(';')
-            .filter(|s| !s.is_empty())
-            .collect();
-        // Only emergences after the first imaging day can be dated from images.
-        truth_events += dates.iter().filter(|d| **d > first.as_str()).count();
-        for e in events.iter().filter(|e| e["plant"] == p) {
-            let leaf: usize = e["leaf"].parse().unwrap();
-            if let Some(d) = dates.get(leaf - 1) {
-                errs.push(days_between(d, &e["emerged_at"]));
-            }
-        }
-    }
+    let (errs, truth_events) = emergence_errors(&truth, &events);
     let rows = truth.len() as f64;
     let mae = if errs.is_empty() {
         f64::NAN
@@ -422,27 +430,7 @@ fn timeline_recovers_emergence_dates_from_true_counts() {
             .unwrap();
         assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
         let events = read_csv(&events_csv);
-        let mut errs = Vec::new();
-        let mut dateable = 0;
-        for p in truth
-            .iter()
-            .map(|t| t["plant"].clone())
-            .collect::<std::collections::BTreeSet<_>>()
-        {
-            let first = truth.iter().find(|t| t["plant"] == p).unwrap()["date"].clone();
-            let last = truth.iter().rev().find(|t| t["plant"] == p).unwrap();
-            let dates: Vec<&str> = last["emergence_dates"]
-                .split(';')
-                .filter(|s| !s.is_empty())
-                .collect();
-            dateable += dates.iter().filter(|d| **d > first.as_str()).count();
-            for e in events.iter().filter(|e| e["plant"] == p) {
-                let leaf: usize = e["leaf"].parse().unwrap();
-                if let Some(d) = dates.get(leaf - 1) {
-                    errs.push(days_between(d, &e["emerged_at"]));
-                }
-            }
-        }
+        let (errs, dateable) = emergence_errors(&truth, &events);
         let mae = errs.iter().map(|e| e.abs()).sum::<f64>() / errs.len().max(1) as f64;
         let bias = errs.iter().sum::<f64>() / errs.len().max(1) as f64;
         let within1 = errs.iter().filter(|e| e.abs() <= 1.0).count();
