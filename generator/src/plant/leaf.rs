@@ -158,12 +158,7 @@ pub fn sheath(mesh: &mut Mesh, state: &LeafState, stem_radius: f32, layer: f32, 
     let rows: Vec<Vec<Vec3>> = (0..=rings)
         .map(|k| {
             let y = state.node_height + state.sheath_length * k as f32 / rings as f32;
-            (0..=SHEATH_SIDES)
-                .map(|j| {
-                    let a = 2.0 * PI * j as f32 / SHEATH_SIDES as f32;
-                    Vec3::new(r * a.cos(), y, r * a.sin())
-                })
-                .collect()
+            super::ring(r, y, SHEATH_SIDES)
         })
         .collect();
     mesh.grid(&rows, |_| TriInfo {

@@ -80,6 +80,17 @@ impl Plant {
     }
 }
 
+/// A closed ring of `sides + 1` vertices (first = last, so grids close) of
+/// radius `r` around the plant axis at height `y`: one row of a tube.
+fn ring(r: f32, y: f32, sides: usize) -> Vec<Vec3> {
+    (0..=sides)
+        .map(|j| {
+            let a = 2.0 * PI * j as f32 / sides as f32;
+            Vec3::new(r * a.cos(), y, r * a.sin())
+        })
+        .collect()
+}
+
 fn stem(mesh: &mut Mesh, height: f32, radius: f32) {
     let sides = 12;
     let rings = 8;
@@ -88,12 +99,7 @@ fn stem(mesh: &mut Mesh, height: f32, radius: f32) {
             let f = k as f32 / rings as f32;
             let y = -0.01 + (height + 0.01) * f;
             let r = radius * (1.0 - 0.35 * f);
-            (0..=sides)
-                .map(|j| {
-                    let a = 2.0 * PI * j as f32 / sides as f32;
-                    Vec3::new(r * a.cos(), y, r * a.sin())
-                })
-                .collect()
+            ring(r, y, sides)
         })
         .collect();
     mesh.grid(&rows, |_| TriInfo {
