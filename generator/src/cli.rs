@@ -38,6 +38,10 @@ enum Command {
         /// Side of the square training crop in pixels (frame scale, never rescaled).
         #[arg(long, default_value_t = 512)]
         size: u32,
+        /// Write whole side-camera frames (614x514 at the contract scale,
+        /// chamber fittings at the edges included) instead of square crops.
+        #[arg(long)]
+        full_frame: bool,
         /// Fraction of plants held out for validation.
         #[arg(long, default_value_t = 0.1)]
         val_fraction: f32,
@@ -251,6 +255,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             seed,
             views,
             size,
+            full_frame,
             val_fraction,
             preset,
             shard,
@@ -270,6 +275,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 seed,
                 views: parse_views(&views)?,
                 size,
+                full_frame,
                 val_fraction,
                 presets: parse_presets(preset.as_deref())?,
                 shard: parse_shard(&shard)?,

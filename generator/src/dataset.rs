@@ -31,6 +31,8 @@ pub struct DatasetArgs {
     pub views: Vec<View>,
     /// Side of the square training crop.
     pub size: u32,
+    /// Whole side frames instead of `size` crops (top views stay crops).
+    pub full_frame: bool,
     /// Fraction of plants held out for validation.
     pub val_fraction: f32,
     /// Presets to draw from (weighted).
@@ -197,7 +199,15 @@ fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) 
             &plan.look,
             phyllo_contract::Contract::embedded().input.frame_height,
         );
-        let window = sampling::crop_window(&scene, &camera, **view, args.size);
+        let window = match **view {
+            View::Side(_) if args.full_frame => render::Window {
+                x0: 0,
+                y0: 0,
+                width: camera.width,
+                height: camera.height,
+            },
+            _ => sampling::crop_window(&scene, &camera, **view, args.size),
+        };
         let seed = rng::derive(render_seed, &view.name(), 0);
         let out = render::render(&scene, &camera, &plan.look, window, args.quality, seed)?;
         let name = item_name(p, view);

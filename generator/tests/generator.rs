@@ -50,6 +50,7 @@ fn args(out: &Path, shard: (u64, u64)) -> DatasetArgs {
         seed: 11,
         views: vec![View::Side(108.0), View::Top],
         size: 64,
+        full_frame: false,
         val_fraction: 0.5,
         presets: vec![Preset::load("btx623").unwrap(), Preset::load("maize").unwrap()],
         shard,

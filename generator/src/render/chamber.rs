@@ -126,7 +126,6 @@ impl Chamber {
     pub fn new(look: &Look, with_ceiling: bool) -> Self {
         let tint = look.light_tint;
         let metal = [0.62, 0.62, 0.6];
-        let dark = [0.025, 0.025, 0.02];
         let (y0, y1, w) = (FLOOR_Y, CEILING_Y, HALF_WIDTH);
         let mut rects = vec![
             // Back wall, lit from behind.
@@ -138,23 +137,6 @@ impl Chamber {
                 facing: 1.0,
                 finish: Finish::Emitter(scale(tint, look.back_wall)),
             },
-            // Side panels (translucent, lit from outside).
-            Rect {
-                axis: 0,
-                at: -w,
-                lo: [y0, BACK_Z],
-                hi: [y1, FRONT_Z],
-                facing: 1.0,
-                finish: Finish::Emitter(mul(scale(tint, look.side_panels), [1.0, 1.0, 0.93])),
-            },
-            Rect {
-                axis: 0,
-                at: w,
-                lo: [y0, BACK_Z],
-                hi: [y1, FRONT_Z],
-                facing: -1.0,
-                finish: Finish::Emitter(mul(scale(tint, look.side_panels), [1.0, 1.0, 0.93])),
-            },
             // Floor.
             Rect {
                 axis: 1,
@@ -165,60 +147,9 @@ impl Chamber {
                 finish: Finish::Matte(look.floor_albedo),
             },
         ];
-        // Dark rail across the floor in front of the carrier, drawn just above it.
-        rects.insert(
-            0,
-            Rect {
-                axis: 1,
-                at: y0 + 0.001,
-                lo: [-w, -0.34],
-                hi: [w, -0.31],
-                facing: 1.0,
-                finish: Finish::Matte(dark),
-            },
-        );
-        // Black corner posts where the back wall meets the side panels.
-        for s in [-1.0f32, 1.0] {
-            let (a, b) = if s < 0.0 { (-w, -0.42) } else { (0.42, w) };
-            rects.insert(
-                0,
-                Rect {
-                    axis: 2,
-                    at: BACK_Z + 0.05,
-                    lo: [a, y0],
-                    hi: [b, y1],
-                    facing: 1.0,
-                    finish: Finish::Matte(dark),
-                },
-            );
-            // Aluminium rails and posts on the side panels.
-            let x = s * (w - 0.005);
-            let facing = -s;
-            rects.insert(
-                0,
-                Rect {
-                    axis: 0,
-                    at: x,
-                    lo: [0.56, BACK_Z],
-                    hi: [0.6, FRONT_Z],
-                    facing,
-                    finish: Finish::Matte(metal),
-                },
-            );
-            for z in [0.7f32, 1.75, 2.9] {
-                rects.insert(
-                    0,
-                    Rect {
-                        axis: 0,
-                        at: x,
-                        lo: [y0, z],
-                        hi: [y1, z + 0.06],
-                        facing,
-                        finish: Finish::Matte(metal),
-                    },
-                );
-            }
-        }
+        // Side panels (translucent, lit from outside), posts, rails, frames.
+        let panel = mul(scale(tint, look.side_panels), [1.0, 1.0, 0.93]);
+        rects.extend(super::fittings::build(look.fittings, panel, metal));
         if with_ceiling {
             rects.push(Rect {
                 axis: 1,

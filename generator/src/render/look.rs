@@ -3,6 +3,7 @@
 //! facility look is the centre of every distribution.
 
 use crate::rng::{self, Draw};
+use rand::Rng;
 
 /// Appearance and camera settings of one image.
 #[derive(Debug, Clone)]
@@ -35,6 +36,8 @@ pub struct Look {
     pub noise_sd: f32,
     /// JPEG round trip quality, if the image should carry JPEG artefacts.
     pub jpeg_quality: Option<u8>,
+    /// Seed of the chamber fittings' layout; `None` is the facility layout.
+    pub fittings: Option<u64>,
 }
 
 impl Look {
@@ -55,6 +58,7 @@ impl Look {
             floor_albedo: [0.8, 0.77, 0.72],
             noise_sd: 0.008,
             jpeg_quality: None,
+            fittings: None,
         }
     }
 
@@ -73,7 +77,12 @@ impl Look {
             back_wall: base.back_wall * r.uniform(0.85, 1.1),
             side_panels: base.side_panels * r.uniform(0.7, 1.1),
             ceiling: base.ceiling * r.uniform(0.6, 1.4),
-            cam_distance: base.cam_distance + r.normal(0.0, 0.12),
+            // Now and then a closer camera, as in older frames of the facility.
+            cam_distance: if r.chance(0.12) {
+                r.uniform(3.4, 4.8)
+            } else {
+                base.cam_distance + r.normal(0.0, 0.12)
+            },
             cam_height: base.cam_height + r.normal(0.0, 0.04),
             cam_shift_px: base.cam_shift_px + r.normal(0.0, 12.0),
             top_height: base.top_height + r.normal(0.0, 0.1),
@@ -91,6 +100,7 @@ impl Look {
             } else {
                 None
             },
+            fittings: Some(r.random::<u64>()),
         }
     }
 }

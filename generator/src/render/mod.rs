@@ -6,6 +6,7 @@ pub mod accel;
 pub mod camera;
 pub mod chamber;
 pub mod film;
+pub mod fittings;
 pub mod integrator;
 pub mod look;
 pub mod materials;
