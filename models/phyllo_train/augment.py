@@ -23,7 +23,7 @@ class AugmentConfig:
     scale: tuple[float, float] = (0.8, 1.25)  # log-uniform scale jitter around the contract scale
     hflip: float = 0.5
     rot90_top: bool = True          # top views have no "up": rotate by k*90 degrees
-    fg_crop: float = 0.8            # probability that the crop is centred on a plant pixel
+    fg_crop: float = 0.7            # probability that the crop is centred on a plant pixel
     brightness: float = 0.25        # multiplicative, +-
     contrast: float = 0.25
     saturation: float = 0.3
@@ -37,13 +37,15 @@ class AugmentConfig:
     noise_sigma: tuple[float, float] = (1.0, 8.0)  # in 0..255 units
     jpeg_p: float = 0.4
     jpeg_quality: tuple[int, int] = (35, 95)
+    fringe_p: float = 0.3           # colour fringes: red and blue planes shifted by up to fringe_px
+    fringe_px: int = 1
 
     @classmethod
     def none(cls, crop: int | None = None) -> "AugmentConfig":
         """No augmentation at all (validation); optional centre-free crop size."""
         return cls(crop=crop, scale=(1.0, 1.0), hflip=0.0, rot90_top=False, fg_crop=0.0, brightness=0.0,
                    contrast=0.0, saturation=0.0, hue=0.0, gamma=(1.0, 1.0), white_balance=0.0,
-                   gradient=0.0, blur_p=0.0, noise_p=0.0, jpeg_p=0.0)
+                   gradient=0.0, blur_p=0.0, noise_p=0.0, jpeg_p=0.0, fringe_p=0.0)
 
 
 def _rescale(img: Image.Image, lab: np.ndarray, f: float) -> tuple[Image.Image, np.ndarray]:
@@ -113,6 +115,12 @@ def photometric(img: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator) -
     x = np.clip(x, 0.0, 1.0)
     if cfg.gamma != (1.0, 1.0):
         x = x ** np.float32(np.exp(rng.uniform(np.log(cfg.gamma[0]), np.log(cfg.gamma[1]))))
+    if cfg.fringe_p > 0 and rng.random() < cfg.fringe_p:
+        # The real camera's lens and demosaicing leave green/magenta fringes on the
+        # chamber's grey profiles; without them in training those edges look like leaves.
+        for c in (0, 2):
+            dy, dx = rng.integers(-cfg.fringe_px, cfg.fringe_px + 1, size=2)
+            x[..., c] = np.roll(x[..., c], (int(dy), int(dx)), axis=(0, 1))
     out = Image.fromarray((x * 255 + 0.5).astype(np.uint8))
     if rng.random() < cfg.blur_p:
         out = out.filter(ImageFilter.GaussianBlur(rng.uniform(*cfg.blur_sigma)))

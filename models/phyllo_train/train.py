@@ -154,6 +154,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--val-every", type=int, default=500)
     ap.add_argument("--ckpt-every", type=int, default=200)
     ap.add_argument("--log-every", type=int, default=10)
+    ap.add_argument("--init", type=Path, default=None,
+                    help="start from this checkpoint's weights (fresh optimiser and schedule); ignored on resume")
     ap.add_argument("--no-resume", action="store_true", help="start afresh even if RUN_DIR/last.pt exists")
     ap.add_argument("--data-note", default="", help="extra provenance for phyllo.training_data (generator commit, command)")
     return ap
@@ -208,6 +210,13 @@ def main(argv: list[str] | None = None) -> int:
         step, best = ck["step"], ck.get("best", best)
         torch.set_rng_state(ck["torch_rng"])
         print(f"resumed from {last} at step {step}")
+    elif args.init is not None:
+        ck = torch.load(args.init, map_location=device, weights_only=False)
+        model.load_state_dict(ck["raw_model"])
+        if ema is not None:
+            # The EMA restarts from the shipped (EMA) weights, so early exports are never worse than the start.
+            ema.module.load_state_dict(ck["model"])
+        print(f"initialised from {args.init} (its step {ck['step']})")
     (args.out / "args.json").write_text(json.dumps({k: str(v) if isinstance(v, Path) else v
                                                     for k, v in vars(args).items()}, indent=1, default=str))
     print(f"{count_parameters(model)} params; {len(train_ds)} train images, {per_epoch} steps/epoch, "

@@ -69,3 +69,22 @@ def test_byte_swapped_labels_are_refused(tiny_dataset, contract, tmp_path):
     Image.fromarray(np.array(Image.open(p)).astype(np.uint16).byteswap()).save(p)
     with pytest.raises(ValueError, match="byte-swapped"):
         PanopticDataset(bad, "train", AugmentConfig(crop=64), contract)[0]
+
+
+def test_colour_fringes_shift_only_red_and_blue():
+    """The fringe op moves the red and blue planes by at most fringe_px and leaves green alone."""
+    from phyllo_train.augment import photometric
+
+    img = np.zeros((32, 32, 3), np.uint8)
+    img[:, 15:17] = 200  # a thin grey profile
+    cfg = AugmentConfig.none()
+    cfg.fringe_p, cfg.fringe_px = 1.0, 1
+    moved = 0
+    for seed in range(8):
+        out = photometric(img, cfg, np.random.default_rng(seed))
+        np.testing.assert_array_equal(out[..., 1], img[..., 1])
+        for c in (0, 2):
+            cols = np.nonzero(out[0, :, c])[0]
+            assert cols.min() >= 14 and cols.max() <= 17
+            moved += int(not np.array_equal(out[..., c], img[..., c]))
+    assert moved > 0
