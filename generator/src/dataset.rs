@@ -78,6 +78,19 @@ pub struct Row {
     pub crop: [i32; 2],
     /// Camera frame size the crop was taken from.
     pub frame: [u32; 2],
+    /// The generator that rendered it: `phyllo-gen <version> (<git commit>)`.
+    /// Empty in datasets written before this field existed.
+    #[serde(default)]
+    pub generator: String,
+}
+
+/// This build's `Row::generator` value.
+pub fn generator_id() -> String {
+    format!(
+        "phyllo-gen {} ({})",
+        env!("CARGO_PKG_VERSION"),
+        env!("PHYLLO_GEN_COMMIT")
+    )
 }
 
 fn item_name(plant: u64, view: &View) -> String {
@@ -238,6 +251,7 @@ fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) 
             leaf_pixels,
             crop: [window.x0, window.y0],
             frame: [camera.width, camera.height],
+            generator: generator_id(),
         };
         png_io::write_atomic(
             &meta_path(&args.out, p, view),

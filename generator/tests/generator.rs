@@ -471,3 +471,29 @@ fn coco_export_round_trips_the_panoptic_labels() {
     }
     assert_eq!(checked, rows.len());
 }
+
+#[test]
+fn full_frame_side_views_cover_the_whole_camera_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut a = args(dir.path(), (0, 1));
+    a.plants = 1;
+    a.full_frame = true;
+    dataset::run(&a).unwrap();
+    let rows = read_rows(&dir.path().join("manifest.jsonl"));
+    assert_eq!(rows.len(), 2);
+    for r in rows {
+        assert!(r.generator.starts_with("phyllo-gen "), "{}", r.generator);
+        let img = image::open(dir.path().join(&r.image)).unwrap();
+        if r.view == "top" {
+            assert_eq!((img.width(), img.height()), (64, 64), "top views stay crops");
+        } else {
+            assert_eq!(
+                [img.width(), img.height()],
+                r.frame,
+                "side view is the whole frame"
+            );
+            assert_eq!(r.frame, [614, 514]);
+            assert_eq!(r.crop, [0, 0]);
+        }
+    }
+}

@@ -56,7 +56,13 @@ pub fn build(seed: Option<u64>, panel: [f32; 3], metal: [f32; 3]) -> Vec<Rect> {
         let rails: Vec<(f32, f32, f32)> = match seed {
             None => vec![(0.56, 0.04, 0.6)],
             Some(_) => (0..r.uniform(0.0, 3.99) as usize)
-                .map(|_| (r.uniform(0.05, 1.15), r.uniform(0.012, 0.05), r.uniform(0.15, 0.7)))
+                .map(|_| {
+                    (
+                        r.uniform(0.05, 1.15),
+                        r.uniform(0.012, 0.05),
+                        r.uniform(0.15, 0.7),
+                    )
+                })
                 .collect(),
         };
         for (y, h, albedo) in rails {
@@ -199,7 +205,11 @@ fn side_wall(
 fn back_frame(out: &mut Vec<Rect>, seed: Option<u64>, metal: [f32; 3], r: &mut impl Draw) {
     let w = HALF_WIDTH;
     let dark = [0.025, 0.025, 0.02];
-    let post = if seed.is_some() { r.uniform(0.03, 0.07) } else { 0.05 };
+    let post = if seed.is_some() {
+        r.uniform(0.03, 0.07)
+    } else {
+        0.05
+    };
     for s in [-1.0f32, 1.0] {
         let (a, b) = if s < 0.0 { (-w, -w + post) } else { (w - post, w) };
         out.push(Rect {
@@ -225,7 +235,11 @@ fn back_frame(out: &mut Vec<Rect>, seed: Option<u64>, metal: [f32; 3], r: &mut i
         }
     }
     if seed.is_none() || r.chance(0.7) {
-        let h = if seed.is_some() { r.uniform(0.02, 0.08) } else { 0.04 };
+        let h = if seed.is_some() {
+            r.uniform(0.02, 0.08)
+        } else {
+            0.04
+        };
         out.push(Rect {
             axis: 2,
             at: BACK_Z + 0.06,
@@ -268,5 +282,44 @@ fn floor_lines(out: &mut Vec<Rect>, seed: Option<u64>, metal: [f32; 3], r: &mut 
                 grey(metal, r.uniform(0.3, 0.9))
             }),
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn layout(seed: Option<u64>) -> Vec<String> {
+        build(seed, [1.0; 3], [0.62; 3])
+            .iter()
+            .map(|r| format!("{} {} {:?} {:?}", r.axis, r.at, r.lo, r.hi))
+            .collect()
+    }
+
+    #[test]
+    fn facility_layout_is_fixed_and_random_layouts_vary() {
+        assert_eq!(layout(None), layout(None));
+        assert_eq!(layout(Some(7)), layout(Some(7)));
+        assert_ne!(layout(Some(7)), layout(Some(8)));
+        assert_ne!(layout(None), layout(Some(7)));
+    }
+
+    /// Chamber surfaces are shaded only where a ray misses the plant, so a
+    /// fitting between the plant and the camera would be drawn behind it.
+    #[test]
+    fn fittings_never_stand_between_plant_and_camera() {
+        for seed in (0..200).map(Some).chain([None]) {
+            for r in build(seed, [1.0; 3], [0.62; 3]) {
+                let ok = match r.axis {
+                    // On or near a side wall.
+                    0 => r.at.abs() >= HALF_WIDTH - 0.08,
+                    // On the floor.
+                    1 => (r.at - FLOOR_Y).abs() < 0.01,
+                    // Facing the camera: behind the plant, or only at the walls.
+                    _ => r.at < -0.5 || r.lo[0].abs().min(r.hi[0].abs()) >= HALF_WIDTH - 0.08,
+                };
+                assert!(ok, "seed {seed:?}: {r:?}");
+            }
+        }
     }
 }
