@@ -32,9 +32,9 @@ CONTRACT = tomllib.loads((Path(__file__).parent / "contract.toml").read_text())
 
 def scale_for(w: int, h: int) -> float:
     spec = CONTRACT["input"]
-    if abs((w / h) / spec["frame_aspect"] - 1.0) <= spec["frame_aspect_tolerance"]:
+    if abs((w / h) / spec["frame_aspect"] - 1.0) <= spec["frame_aspect_tolerance"] and h >= spec["frame_height"]:
         return spec["frame_height"] / h
-    return spec["crop_long_side"] / max(w, h)
+    return spec["crop_scale"]
 
 
 def plant_bbox(img: np.ndarray, trim: float = 0.02, margin: int = 12, min_pixels: int = 40):

@@ -114,8 +114,8 @@ pub struct InputSpec {
     pub frame_aspect: f32,
     /// Relative tolerance when recognising a frame by its aspect.
     pub frame_aspect_tolerance: f32,
-    /// Longer side a non-frame image (a crop) is resized to.
-    pub crop_long_side: u32,
+    /// Factor a non-frame image (a crop cut from a half-size frame) is resized by.
+    pub crop_scale: f32,
     /// Overlap between neighbouring tiles in pixels.
     pub tile_overlap: u32,
 }

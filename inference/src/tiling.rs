@@ -15,17 +15,19 @@ use crate::region::{plant_bbox, RegionMode};
 
 /// Scale factor (model pixels per original pixel) for an image of `w` x `h`.
 ///
-/// Camera frames, recognised by their aspect ratio, are resized to the
-/// contract's frame height, whatever the camera's resolution; anything else
-/// is taken as a crop around one plant and resized so its longer side is the
-/// contract's crop size.
+/// Camera frames, recognised by their aspect ratio and a height of at least
+/// the contract's frame height (some crops happen to have the frame's
+/// aspect), are resized to the contract's frame height, whatever the
+/// camera's resolution; anything else
+/// is taken as a facility crop (cut from a half-size frame) and resized by the
+/// contract's crop factor, so a plant is as large as it is in frames.
 pub fn scale_for(contract: &Contract, w: u32, h: u32) -> f32 {
     let spec = &contract.input;
     let aspect = w as f32 / h as f32;
-    if (aspect / spec.frame_aspect - 1.0).abs() <= spec.frame_aspect_tolerance {
+    if (aspect / spec.frame_aspect - 1.0).abs() <= spec.frame_aspect_tolerance && h >= spec.frame_height {
         spec.frame_height as f32 / h as f32
     } else {
-        spec.crop_long_side as f32 / w.max(h) as f32
+        spec.crop_scale
     }
 }
 
@@ -266,7 +268,10 @@ mod tests {
         let c = Contract::embedded();
         assert!((scale_for(c, 2454, 2056) - 0.25).abs() < 1e-6);
         assert!((scale_for(c, 1227, 1028) - 0.5).abs() < 1e-6);
-        assert!((scale_for(c, 225, 198) - 448.0 / 225.0).abs() < 1e-6);
+        assert_eq!(scale_for(c, 614, 514), 1.0);
+        assert_eq!(scale_for(c, 225, 198), 0.5);
+        // A crop that happens to have the frame's aspect is still a crop.
+        assert_eq!(scale_for(c, 473, 401), 0.5);
     }
 
     #[test]

@@ -31,7 +31,7 @@ class Contract:
     mean: tuple[float, float, float]
     std: tuple[float, float, float]
     frame_height: int
-    crop_long_side: int
+    crop_scale: float
     tile_overlap: int
     stride: int
     semantic_name: str
@@ -73,7 +73,7 @@ def _parse(raw: dict) -> Contract:
         mean=tuple(float(v) for v in inp["mean"]),
         std=tuple(float(v) for v in inp["std"]),
         frame_height=int(inp["frame_height"]),
-        crop_long_side=int(inp["crop_long_side"]),
+        crop_scale=float(inp["crop_scale"]),
         tile_overlap=int(inp["tile_overlap"]),
         stride=int(out["stride"]),
         semantic_name=out["semantic"],

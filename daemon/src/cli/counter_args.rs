@@ -21,6 +21,10 @@ pub struct CounterArgs {
     /// Plant region: `auto` (by colour), `full`, or a fixed box `x0,y0,x1,y1` in image pixels.
     #[arg(long, default_value = "auto")]
     pub region: String,
+    /// Model pixels per image pixel, overriding the contract's scale rule
+    /// (e.g. 0.5 for crops cut from 1227x1028 half-size frames).
+    #[arg(long, value_name = "FACTOR", value_parser = parse_scale)]
+    pub scale: Option<f32>,
 }
 
 impl CounterArgs {
@@ -31,9 +35,19 @@ impl CounterArgs {
             ort_lib: self.ort_lib.clone(),
             intra_threads: self.threads,
             region: parse_region(&self.region)?,
+            scale: self.scale,
             ..CounterConfig::default()
         })
     }
+}
+
+/// Parses a `--scale` factor: finite and within 0.01..=8.
+fn parse_scale(s: &str) -> Result<f32, String> {
+    let v: f32 = s.parse().map_err(|_| format!("{s:?} is not a number"))?;
+    if !(0.01..=8.0).contains(&v) {
+        return Err(format!("{v} must lie in 0.01..=8"));
+    }
+    Ok(v)
 }
 
 /// Parses `auto`, `full` or `x0,y0,x1,y1`.
