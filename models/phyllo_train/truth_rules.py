@@ -1,0 +1,71 @@
+"""Re-score `phyllo eval --dataset ... --per-image` output under another truth rule.
+
+`phyllo eval` counts as truth only leaves of at least min_leaf_area x stride^2
+input pixels in the label. This reads its per-image lines and the dataset
+manifest and prints the count metrics against *every* visible leaf instance
+(the manifest's ``visible_leaf_count``), so the two rules can be compared on
+the same predictions::
+
+    phyllo eval --dataset DIR --split val --per-image > per_image.txt
+    python -m phyllo_train.truth_rules --dataset DIR per_image.txt
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .dataset import read_manifest
+
+
+def parse_per_image(lines) -> dict[str, tuple[int, int]]:
+    """``{image path: (true, predicted)}`` from eval's tab-separated per-image lines."""
+    out = {}
+    for line in lines:
+        parts = line.rstrip("\n").split("\t")
+        if len(parts) < 4 or not parts[2].startswith("true ") or not parts[3].startswith("predicted "):
+            continue
+        out[parts[0]] = (int(parts[2][5:]), int(parts[3][10:]))
+    return out
+
+
+def metrics(truth: np.ndarray, pred: np.ndarray) -> dict[str, float]:
+    """Exact, within one, RMSE, MAE and bias of predicted counts."""
+    err = pred.astype(np.float64) - truth
+    return {"images": len(err), "exact": float((err == 0).mean()), "within1": float((np.abs(err) <= 1).mean()),
+            "rmse": float(np.sqrt((err ** 2).mean())), "mae": float(np.abs(err).mean()), "bias": float(err.mean())}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--dataset", type=Path, required=True, help="the phyllo-gen dataset that was evaluated")
+    ap.add_argument("per_image", type=Path, help="saved output of phyllo eval --per-image")
+    args = ap.parse_args(argv)
+    with open(args.per_image, encoding="utf-8") as f:
+        scored = parse_per_image(f)
+    if not scored:
+        raise SystemExit(f"{args.per_image}: no per-image lines (was --per-image given?)")
+    by_image = {str(args.dataset / r["image"]): r for r in read_manifest(args.dataset)}
+    countable, visible, pred = [], [], []
+    for path, (t, p) in scored.items():
+        row = by_image.get(path) or by_image.get(str(Path(path)))
+        if row is None:
+            raise SystemExit(f"{path}: not in {args.dataset / 'manifest.jsonl'}")
+        countable.append(t)
+        visible.append(int(row["visible_leaf_count"]))
+        pred.append(p)
+    pred_a = np.asarray(pred)
+    print("| truth rule | images | exact | within ±1 | RMSE | MAE | bias |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for name, t in (("leaves >= min area (phyllo eval)", countable), ("every visible leaf", visible)):
+        m = metrics(np.asarray(t), pred_a)
+        print(f"| {name} | {m['images']} | {100 * m['exact']:.1f}% | {100 * m['within1']:.1f}% | "
+              f"{m['rmse']:.3f} | {m['mae']:.3f} | {m['bias']:+.3f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
