@@ -58,7 +58,7 @@ pub fn build(seed: Option<u64>, panel: [f32; 3], metal: [f32; 3]) -> Vec<Rect> {
             Some(_) => (0..r.uniform(0.0, 3.99) as usize)
                 .map(|_| {
                     (
-                        r.uniform(0.05, 1.15),
+                        r.uniform(0.05, 1.25),
                         r.uniform(0.012, 0.05),
                         r.uniform(0.15, 0.7),
                     )
@@ -66,6 +66,22 @@ pub fn build(seed: Option<u64>, panel: [f32; 3], metal: [f32; 3]) -> Vec<Rect> {
                 .collect(),
         };
         for (y, h, albedo) in rails {
+            // Most rails cast a dark line on the panel just below them.
+            let shadow = if seed.is_some() && r.chance(0.6) {
+                r.uniform(0.003, 0.015)
+            } else {
+                0.0
+            };
+            if shadow > 0.0 {
+                out.push(Rect {
+                    axis: 0,
+                    at: side * (HALF_WIDTH - 0.002),
+                    lo: [y - shadow, BACK_Z],
+                    hi: [y, FRONT_Z],
+                    facing: -side,
+                    finish: Finish::Matte(grey(metal, 0.06)),
+                });
+            }
             out.push(Rect {
                 axis: 0,
                 at: side * (HALF_WIDTH - 0.004),
@@ -77,6 +93,7 @@ pub fn build(seed: Option<u64>, panel: [f32; 3], metal: [f32; 3]) -> Vec<Rect> {
         }
     }
     back_frame(&mut out, seed, metal, &mut r);
+    ceiling_joints(&mut out, seed, metal, &mut r);
     floor_lines(&mut out, seed, metal, &mut r);
     out
 }
@@ -234,6 +251,23 @@ fn back_frame(out: &mut Vec<Rect>, seed: Option<u64>, metal: [f32; 3], r: &mut i
             });
         }
     }
+    // Brackets where the inner frame meets the ceiling, in the top corners.
+    for s in [-1.0f32, 1.0] {
+        if seed.is_none() || !r.chance(0.7) {
+            continue;
+        }
+        let (bw, bh) = (r.uniform(0.02, 0.1), r.uniform(0.02, 0.12));
+        let x = s * (w - post);
+        let (a, b) = if s < 0.0 { (x, x + bw) } else { (x - bw, x) };
+        out.push(Rect {
+            axis: 2,
+            at: BACK_Z + r.uniform(0.07, 0.35),
+            lo: [a, CEILING_Y - bh],
+            hi: [b, CEILING_Y],
+            facing: 1.0,
+            finish: Finish::Matte(grey(metal, r.uniform(0.2, 0.9))),
+        });
+    }
     if seed.is_none() || r.chance(0.7) {
         let h = if seed.is_some() {
             r.uniform(0.02, 0.08)
@@ -247,6 +281,32 @@ fn back_frame(out: &mut Vec<Rect>, seed: Option<u64>, metal: [f32; 3], r: &mut i
             hi: [w, CEILING_Y],
             facing: 1.0,
             finish: Finish::Matte(dark),
+        });
+    }
+}
+
+/// Joints and light-frame edges across the ceiling (random layouts only):
+/// thin bright or dark lines along the top of the frame.
+fn ceiling_joints(out: &mut Vec<Rect>, seed: Option<u64>, metal: [f32; 3], r: &mut impl Draw) {
+    if seed.is_none() {
+        return;
+    }
+    let w = HALF_WIDTH;
+    for _ in 0..r.uniform(0.0, 3.99) as usize {
+        let z = r.uniform(BACK_Z, 0.6);
+        let d = r.uniform(0.005, 0.05);
+        let g = if r.chance(0.5) {
+            r.uniform(0.03, 0.2)
+        } else {
+            r.uniform(0.4, 0.9)
+        };
+        out.push(Rect {
+            axis: 1,
+            at: CEILING_Y - 0.001,
+            lo: [-w, z],
+            hi: [w, z + d],
+            facing: -1.0,
+            finish: Finish::Matte(grey(metal, g)),
         });
     }
 }
@@ -313,8 +373,8 @@ mod tests {
                 let ok = match r.axis {
                     // On or near a side wall.
                     0 => r.at.abs() >= HALF_WIDTH - 0.08,
-                    // On the floor.
-                    1 => (r.at - FLOOR_Y).abs() < 0.01,
+                    // On the floor or the ceiling.
+                    1 => (r.at - FLOOR_Y).abs() < 0.01 || (r.at - CEILING_Y).abs() < 0.01,
                     // Facing the camera: behind the plant, or only at the walls.
                     _ => r.at < -0.5 || r.lo[0].abs().min(r.hi[0].abs()) >= HALF_WIDTH - 0.08,
                 };
