@@ -45,7 +45,7 @@ enum Command {
         /// Fraction of plants held out for validation.
         #[arg(long, default_value_t = 0.1)]
         val_fraction: f32,
-        /// Preset names or .toml paths, comma-separated (default: all weighted built-ins).
+        /// Preset names or .toml paths, comma-separated, each optionally `:WEIGHT` (e.g. `btx623,maize:0.5`; default: all weighted built-ins).
         #[arg(long)]
         preset: Option<String>,
         /// Render shard I of N (plants with index % N == I), e.g. 3/16.
@@ -96,7 +96,7 @@ enum Command {
         /// Camera frame height; width follows the 2454x2056 aspect.
         #[arg(long, default_value_t = 514)]
         frame_height: u32,
-        /// Preset names or .toml paths, comma-separated.
+        /// Preset names or .toml paths, comma-separated, each optionally `:WEIGHT`.
         #[arg(long)]
         preset: Option<String>,
         /// Camera samples per pixel.
@@ -211,8 +211,8 @@ pub fn parse_presets(s: Option<&str>) -> anyhow::Result<Vec<Preset>> {
             let v = list
                 .split(',')
                 .filter(|p| !p.trim().is_empty())
-                .map(|p| Preset::load(p.trim()))
-                .collect::<Result<Vec<_>, _>>()
+                .map(|p| load_weighted(p.trim()))
+                .collect::<anyhow::Result<Vec<_>>>()
                 .context("--preset")?;
             if v.is_empty() {
                 bail!("--preset is empty");
@@ -227,6 +227,26 @@ pub fn parse_presets(s: Option<&str>) -> anyhow::Result<Vec<Preset>> {
             .filter(|p| p.weight > 0.0)
             .collect()),
     }
+}
+
+/// Loads one `--preset` entry: a name or path, optionally `:WEIGHT` to
+/// override the preset's mixing weight (so `maize:0.5` mixes in maize, whose
+/// built-in weight is 0).
+fn load_weighted(entry: &str) -> anyhow::Result<Preset> {
+    let (name, weight) = match entry.rsplit_once(':') {
+        Some((n, w)) if !n.is_empty() && w.trim().parse::<f32>().is_ok() => {
+            (n.trim(), Some(w.trim().parse::<f32>().expect("checked")))
+        }
+        _ => (entry, None),
+    };
+    let mut preset = Preset::load(name)?;
+    if let Some(w) = weight {
+        if !(w >= 0.0 && w.is_finite()) {
+            bail!("preset `{name}`: weight must be a finite number >= 0, got {w}");
+        }
+        preset.weight = w;
+    }
+    Ok(preset)
 }
 
 fn quality(spp: u32) -> anyhow::Result<Quality> {
@@ -441,5 +461,21 @@ pub fn main() -> ExitCode {
             eprintln!("phyllo-gen: error: {e:#}");
             ExitCode::from(1)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn preset_weights_can_be_overridden() {
+        let v = parse_presets(Some("btx623, maize:0.5")).unwrap();
+        assert_eq!(v.len(), 2);
+        assert_eq!((v[0].name.as_str(), v[0].weight), ("btx623", 1.0));
+        assert_eq!((v[1].name.as_str(), v[1].weight), ("maize", 0.5));
+        let err = format!("{:#}", parse_presets(Some("maize:-1")).unwrap_err());
+        assert!(err.contains("weight"), "{err}");
+        assert!(parse_presets(Some("nosuch:1")).is_err());
     }
 }
