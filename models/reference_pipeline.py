@@ -136,7 +136,58 @@ def stitch(sem, cen, off, tiles, cw, ch):
 PLANT_MARGIN = 16  # model pixels of slack around the plant box, as in counter.rs
 
 
-def postprocess(sem, cen, off, plant=None):
+ATTACH_RADIUS = 3  # output pixels, as DEFAULT_ATTACH_RADIUS in postprocess.rs
+
+
+def plant_colour(img: np.ndarray) -> np.ndarray:
+    """Green or senescent pixels, white-balanced on the image median (region.rs)."""
+    white = np.median(img.reshape(-1, 3), axis=0).clip(1, None)
+    n = img.astype(np.float32) / white
+    r, g, b = n[..., 0], n[..., 1], n[..., 2]
+    return (g - np.maximum(r, b) > 0.06) | ((r - b > 0.25) & (g - b > 0.15))
+
+
+def components(mask: np.ndarray) -> tuple[np.ndarray, int]:
+    """8-connected components by breadth-first search: labels from 1, and their number."""
+    h, w = mask.shape
+    label = np.zeros((h, w), np.int32)
+    n = 0
+    for y0, x0 in zip(*np.nonzero(mask)):
+        if label[y0, x0]:
+            continue
+        n += 1
+        label[y0, x0] = n
+        todo = [(y0, x0)]
+        while todo:
+            y, x = todo.pop()
+            for yy in range(max(y - 1, 0), min(y + 2, h)):
+                for xx in range(max(x - 1, 0), min(x + 2, w)):
+                    if mask[yy, xx] and not label[yy, xx]:
+                        label[yy, xx] = n
+                        todo.append((yy, xx))
+    return label, n
+
+
+def attached(semantic, inst, n_inst, canvas):
+    """Per instance: whether at least half its pixels lie in a plant body (attachment.rs)."""
+    r, s = ATTACH_RADIUS, CONTRACT["outputs"]["stride"]
+    plant = semantic != 0
+    padded = np.pad(plant, r)
+    bridged = sliding_window_view(padded, (2 * r + 1, 2 * r + 1)).any(axis=(2, 3))
+    body, n = components(bridged)
+    green = plant_colour(canvas)[s // 2::s, s // 2::s][: plant.shape[0], : plant.shape[1]]
+    colour = np.bincount(body[plant & green], minlength=n + 1)
+    size = np.bincount(body[plant], minlength=n + 1)
+    score = colour if colour.any() else size
+    kept = (score > 0) & (score >= 0.25 * score.max())
+    in_body = kept[body]
+    ids = inst[inst > 0]
+    area = np.bincount(ids, minlength=n_inst + 1)
+    inside = np.bincount(ids[in_body[inst > 0]], minlength=n_inst + 1)
+    return (inside >= 0.5 * area)[1:]
+
+
+def postprocess(sem, cen, off, plant=None, canvas=None):
     pp = CONTRACT["postprocess"]
     things = CONTRACT["classes"]["things"]
     semantic = sem.argmax(0)
@@ -159,6 +210,10 @@ def postprocess(sem, cen, off, plant=None):
     areas = votes.sum(1)
     classes = votes.argmax(1)
     keep = areas >= max(pp["min_leaf_area"], 1)
+    if canvas is not None:
+        ids = np.zeros(semantic.shape, np.int64)
+        ids[ty, tx] = inst + 1
+        keep &= attached(semantic, ids, len(cy), canvas)
     if plant is not None:
         # Instances centred outside the plant's box are chamber, not plant.
         s = CONTRACT["outputs"]["stride"]
@@ -197,7 +252,7 @@ def main() -> int:
                 for i in range(0, len(batch), args.batch)]
         sem, cen, off = (np.concatenate([o[j] for o in outs]) for j in range(3))
         t3 = time.perf_counter()
-        n = postprocess(*stitch(sem, cen, off, tiles, canvas.shape[1], canvas.shape[0]), plant)
+        n = postprocess(*stitch(sem, cen, off, tiles, canvas.shape[1], canvas.shape[0]), plant, canvas)
         t4 = time.perf_counter()
         if stats is not None:
             for k, v in (("decode", t1 - t0), ("tile", t2 - t1), ("inference", t3 - t2),

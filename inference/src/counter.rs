@@ -7,6 +7,7 @@ use image::RgbImage;
 use phyllo_contract::{Contract, LEAF};
 use serde::{Deserialize, Serialize};
 
+use crate::attachment::keep_attached;
 use crate::decode::{decode_rgb, DecodeLimits};
 use crate::error::InferenceError;
 use crate::model::{Model, ModelInfo, ModelOptions};
@@ -192,6 +193,7 @@ impl Counter {
         let (cw, ch) = canvas.image.dimensions();
         let raw = stitch(&outputs, &canvas.tiles, cw, ch, c.outputs.stride);
         let mut pan = panoptic(&raw, c, &self.config.postprocess);
+        keep_attached(&mut pan, &canvas.image, c, self.config.postprocess.attach_radius);
         if let Some([x0, y0, x1, y1]) = canvas.plant {
             // The chamber's frames and panels sometimes look leaf-like to the
             // model; an instance centred outside the plant's box is not a leaf.

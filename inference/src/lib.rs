@@ -3,11 +3,12 @@
 //! Data flows one way through these stages, each in its own module:
 //!
 //! ```text
-//! decode ─► region ─► tiling ─► model (ONNX Runtime) ─► stitch ─► postprocess ─► CountResult
+//! decode ─► region ─► tiling ─► model (ONNX Runtime) ─► stitch ─► postprocess ─► attachment ─► CountResult
 //! ```
 //!
 //! [`Counter`] ties the stages together; the daemon and the CLI only use it.
 
+pub mod attachment;
 pub mod counter;
 pub mod decode;
 pub mod error;

@@ -54,7 +54,15 @@ pub struct PostprocessParams {
     pub top_k: usize,
     /// Smallest instance kept, in output pixels.
     pub min_leaf_area: u32,
+    /// Gaps up to this many output pixels still join plant pixels into one
+    /// body; instances apart from the plant's body are dropped (0: keep all).
+    /// See [`crate::attachment`].
+    pub attach_radius: u32,
 }
+
+/// Default [`PostprocessParams::attach_radius`]: 3 output pixels, 24 pixels
+/// of the full 2454x2056 camera frame.
+pub const DEFAULT_ATTACH_RADIUS: u32 = 3;
 
 impl From<&PostprocessDefaults> for PostprocessParams {
     fn from(d: &PostprocessDefaults) -> Self {
@@ -63,6 +71,7 @@ impl From<&PostprocessDefaults> for PostprocessParams {
             nms_kernel: d.nms_kernel,
             top_k: d.top_k,
             min_leaf_area: d.min_leaf_area,
+            attach_radius: DEFAULT_ATTACH_RADIUS,
         }
     }
 }
@@ -314,6 +323,7 @@ mod tests {
             nms_kernel: 7,
             top_k: 10,
             min_leaf_area: 1,
+            attach_radius: 0,
         }
     }
 

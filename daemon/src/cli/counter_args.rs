@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
+use phyllo_inference::postprocess::{PostprocessParams, DEFAULT_ATTACH_RADIUS};
 use phyllo_inference::region::RegionMode;
 use phyllo_inference::CounterConfig;
 
@@ -25,17 +26,36 @@ pub struct CounterArgs {
     /// (e.g. 0.5 for crops cut from 1227x1028 half-size frames).
     #[arg(long, value_name = "FACTOR", value_parser = parse_scale)]
     pub scale: Option<f32>,
+    /// Post-processing: instances apart from the plant's body by more than
+    /// this many model output pixels are dropped (0: keep every instance).
+    #[arg(long, value_name = "PIXELS", default_value_t = DEFAULT_ATTACH_RADIUS)]
+    pub attach_radius: u32,
+    /// Post-processing: smallest leaf that counts, in model output pixels
+    /// (default: the contract's).
+    #[arg(long, value_name = "PIXELS")]
+    pub min_leaf_area: Option<u32>,
+    /// Post-processing: minimum centre heatmap value (default: the contract's).
+    #[arg(long, value_name = "VALUE")]
+    pub center_threshold: Option<f32>,
 }
 
 impl CounterArgs {
     /// The counter configuration these arguments describe.
     pub fn config(&self) -> anyhow::Result<CounterConfig> {
+        let defaults = PostprocessParams::default();
+        let postprocess = PostprocessParams {
+            attach_radius: self.attach_radius,
+            min_leaf_area: self.min_leaf_area.unwrap_or(defaults.min_leaf_area),
+            center_threshold: self.center_threshold.unwrap_or(defaults.center_threshold),
+            ..defaults
+        };
         Ok(CounterConfig {
             model: self.model.clone(),
             ort_lib: self.ort_lib.clone(),
             intra_threads: self.threads,
             region: parse_region(&self.region)?,
             scale: self.scale,
+            postprocess,
             ..CounterConfig::default()
         })
     }

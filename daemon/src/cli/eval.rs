@@ -27,6 +27,11 @@ pub struct Args {
     /// Dataset split to evaluate (`all` for every row).
     #[arg(long, default_value = "val")]
     pub split: String,
+    /// Dataset truth: the smallest visible leaf area, in image pixels, that
+    /// counts as a leaf (default: the contract's minimum leaf area, 96 px at
+    /// stride 2; 1 counts every visible leaf).
+    #[arg(long, value_name = "PIXELS", requires = "dataset")]
+    pub truth_min_pixels: Option<usize>,
     /// CSV of human counts with `file` and `leaf_count` columns.
     #[arg(long, value_name = "CSV", requires = "images")]
     pub counts: Option<PathBuf>,
@@ -66,10 +71,17 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut failed = Vec::new();
     let title;
     if let Some(dir) = &args.dataset {
-        title = format!("{} ({})", dir.display(), args.split);
         let split = (args.split != "all").then_some(args.split.as_str());
         // A leaf the model cannot resolve at its stride is not a countable leaf.
-        let min_pixels = (c.postprocess.min_leaf_area * c.outputs.stride * c.outputs.stride) as usize;
+        let min_pixels = args
+            .truth_min_pixels
+            .unwrap_or((c.postprocess.min_leaf_area * c.outputs.stride * c.outputs.stride) as usize)
+            .max(1);
+        title = format!(
+            "{} ({}; truth: leaves of at least {min_pixels} px)",
+            dir.display(),
+            args.split
+        );
         for item in sources::read_manifest(dir, split)? {
             let outcome = (|| -> anyhow::Result<(CountPair, LeafMatch)> {
                 let bytes = std::fs::read(&item.image)

@@ -1,0 +1,252 @@
+//! Keeping only the instances that belong to the plant.
+//!
+//! Every leaf grows from the stem, so in a side view the plant is one
+//! connected body: leaves overlap each other or meet the stem. What the model
+//! sometimes takes for a leaf in the chamber (a ceiling edge, a corner
+//! bracket, a rail where it meets a post) lies apart from that body, across
+//! bright wall. This stage groups the model's plant pixels (any non-background
+//! class) into bodies, bridging gaps of up to `radius` output pixels, picks the
+//! plant's body by colour (the one with most green or senescent pixels, as in
+//! [`crate::region`]), keeps the bodies with a fair share of plant colour too
+//! (a leaf cut off by a thin missed stretch), and drops instances that lie
+//! mostly outside the kept bodies.
+
+use image::RgbImage;
+use phyllo_contract::Contract;
+
+use crate::postprocess::Panoptic;
+use crate::region::{is_plant_pixel, median_colour};
+
+/// A body counts as plant when it holds at least this share of the plant
+/// colour of the most plant-coloured body.
+const MIN_COLOUR_SHARE: f32 = 0.25;
+
+/// An instance is kept when at least this share of its pixels is in a kept body.
+const MIN_INSTANCE_SHARE: f32 = 0.5;
+
+/// Drops the instances of `pan` that lie apart from the plant. `canvas` is
+/// the image the model saw (`stride` input pixels per output pixel); gaps of
+/// up to `radius` output pixels between plant pixels are bridged. A radius of
+/// 0 disables the stage.
+pub fn keep_attached(pan: &mut Panoptic, canvas: &RgbImage, contract: &Contract, radius: u32) {
+    if radius == 0 || pan.segments.is_empty() {
+        return;
+    }
+    let (w, h) = (pan.width, pan.height);
+    let plant: Vec<bool> = pan.semantic.iter().map(|&c| c != 0).collect();
+    let bridged = dilate(&plant, w, h, radius as usize);
+    let (body, bodies) = label_components(&bridged, w, h);
+    if bodies == 0 {
+        return;
+    }
+
+    // Plant colour per body, sampled at the centre of each output pixel.
+    let stride = contract.outputs.stride as usize;
+    let white = median_colour(canvas);
+    let (cw, ch) = (canvas.width() as usize, canvas.height() as usize);
+    let mut colour = vec![0u32; bodies + 1];
+    let mut size = vec![0u32; bodies + 1];
+    for i in 0..w * h {
+        if !plant[i] {
+            continue;
+        }
+        let b = body[i] as usize;
+        size[b] += 1;
+        let (x, y) = ((i % w) * stride + stride / 2, (i / w) * stride + stride / 2);
+        if x < cw && y < ch && is_plant_pixel(canvas.get_pixel(x as u32, y as u32).0, white) {
+            colour[b] += 1;
+        }
+    }
+    // Without any plant colour (a grey image) the largest body is the plant.
+    let score = if colour.iter().any(|&c| c > 0) {
+        &colour
+    } else {
+        &size
+    };
+    let best = score.iter().copied().max().unwrap_or(0) as f32;
+    let kept: Vec<bool> = score
+        .iter()
+        .map(|&s| s > 0 && s as f32 >= MIN_COLOUR_SHARE * best)
+        .collect();
+
+    let mut inside = vec![0u32; pan.segments.len() + 1];
+    let mut area = vec![0u32; pan.segments.len() + 1];
+    for i in 0..w * h {
+        let id = pan.instance[i] as usize;
+        if id == 0 {
+            continue;
+        }
+        area[id] += 1;
+        if kept[body[i] as usize] {
+            inside[id] += 1;
+        }
+    }
+    pan.retain(|seg| {
+        let id = seg.id as usize;
+        inside[id] as f32 >= MIN_INSTANCE_SHARE * area[id] as f32
+    });
+}
+
+/// Square dilation of `mask` by `r` pixels (separable: rows, then columns).
+fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
+    let mut rows = vec![false; w * h];
+    for y in 0..h {
+        // Distance to the last set pixel on the left, swept both ways.
+        let row = &mask[y * w..(y + 1) * w];
+        let mut last: Option<usize> = None;
+        for x in 0..w {
+            if row[x] {
+                last = Some(x);
+            }
+            rows[y * w + x] = last.is_some_and(|l| x - l <= r);
+        }
+        last = None;
+        for x in (0..w).rev() {
+            if row[x] {
+                last = Some(x);
+            }
+            rows[y * w + x] |= last.is_some_and(|l| l - x <= r);
+        }
+    }
+    let mut out = vec![false; w * h];
+    for x in 0..w {
+        let mut last: Option<usize> = None;
+        for y in 0..h {
+            if rows[y * w + x] {
+                last = Some(y);
+            }
+            out[y * w + x] = last.is_some_and(|l| y - l <= r);
+        }
+        last = None;
+        for y in (0..h).rev() {
+            if rows[y * w + x] {
+                last = Some(y);
+            }
+            out[y * w + x] |= last.is_some_and(|l| l - y <= r);
+        }
+    }
+    out
+}
+
+/// 8-connected components of `mask`: a label per pixel (0 outside the mask,
+/// bodies from 1) and the number of bodies.
+fn label_components(mask: &[bool], w: usize, h: usize) -> (Vec<u32>, usize) {
+    let mut label = vec![0u32; w * h];
+    let mut next = 0u32;
+    let mut stack = Vec::new();
+    for start in 0..w * h {
+        if !mask[start] || label[start] != 0 {
+            continue;
+        }
+        next += 1;
+        label[start] = next;
+        stack.push(start);
+        while let Some(i) = stack.pop() {
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
+                        continue;
+                    }
+                    let j = ny as usize * w + nx as usize;
+                    if mask[j] && label[j] == 0 {
+                        label[j] = next;
+                        stack.push(j);
+                    }
+                }
+            }
+        }
+    }
+    (label, next as usize)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::postprocess::Segment;
+
+    /// A 40x20 output grid (stride 2) with three leaves: two touching the
+    /// green stem, one grey "leaf" on the chamber frame far away.
+    fn scene() -> (Panoptic, RgbImage) {
+        let (w, h) = (40usize, 20usize);
+        let mut semantic = vec![0u8; w * h];
+        let mut instance = vec![0u32; w * h];
+        let mut img = RgbImage::from_pixel(80, 40, image::Rgb([235, 232, 228]));
+        let mut paint = |x0: usize, x1: usize, y0: usize, y1: usize, class: u8, id: u32, rgb: [u8; 3]| {
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    semantic[y * w + x] = class;
+                    instance[y * w + x] = id;
+                    for (dy, dx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                        img.put_pixel((2 * x + dx) as u32, (2 * y + dy) as u32, image::Rgb(rgb));
+                    }
+                }
+            }
+        };
+        let green = [60, 120, 40];
+        paint(10, 11, 2, 18, 2, 0, green); // stem
+        paint(4, 10, 5, 7, 1, 1, green); // leaf touching the stem
+        paint(13, 20, 9, 11, 1, 2, green); // leaf two pixels from the stem
+        paint(34, 40, 0, 2, 1, 3, [150, 150, 150]); // grey bracket
+        let seg = |id: u32| Segment {
+            id,
+            class: 1,
+            area: 0,
+            bbox: [0, 0, 1, 1],
+            centre: [0.0, 0.0],
+            score: 1.0,
+        };
+        let pan = Panoptic {
+            height: h,
+            width: w,
+            semantic,
+            instance,
+            segments: vec![seg(1), seg(2), seg(3)],
+        };
+        (pan, img)
+    }
+
+    #[test]
+    fn drops_the_detached_grey_instance_and_keeps_the_leaves() {
+        let (mut pan, img) = scene();
+        keep_attached(&mut pan, &img, Contract::embedded(), 3);
+        assert_eq!(pan.segments.len(), 2);
+        assert!(pan.instance[..].iter().all(|&i| i <= 2));
+        assert_eq!(pan.instance[5 * 40 + 4], 1);
+        assert_eq!(pan.instance[9 * 40 + 13], 2);
+        assert_eq!(pan.instance[39], 0, "the bracket's pixels are cleared");
+    }
+
+    #[test]
+    fn radius_zero_keeps_everything() {
+        let (mut pan, img) = scene();
+        keep_attached(&mut pan, &img, Contract::embedded(), 0);
+        assert_eq!(pan.segments.len(), 3);
+    }
+
+    #[test]
+    fn a_green_body_apart_from_the_plant_is_kept() {
+        // Recolour the bracket green and as big as a leaf: a leaf whose link to
+        // the stem the model missed is still plant.
+        let (mut pan, mut img) = scene();
+        for y in 0..4 {
+            for x in 68..80 {
+                img.put_pixel(x, y, image::Rgb([60, 120, 40]));
+            }
+        }
+        keep_attached(&mut pan, &img, Contract::embedded(), 3);
+        assert_eq!(pan.segments.len(), 3);
+    }
+
+    #[test]
+    fn dilation_and_components() {
+        let (w, h) = (7, 1);
+        let mask = [true, false, false, false, false, false, true];
+        let d = dilate(&mask, w, h, 2);
+        assert_eq!(d, vec![true, true, true, false, true, true, true]);
+        let (label, n) = label_components(&d, w, h);
+        assert_eq!(n, 2);
+        assert_eq!(label, vec![1, 1, 1, 0, 2, 2, 2]);
+    }
+}
