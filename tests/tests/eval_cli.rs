@@ -57,6 +57,50 @@ fn evaluates_a_generated_dataset_against_its_labels() {
         let img = image::open(plots.join(p)).unwrap();
         assert!(img.width() > 300, "{p}");
     }
+
+    // `--truth-min-pixels 1` counts every visible leaf as truth.
+    let (out, stdout, stderr) = run(phyllo()
+        .args([
+            "eval",
+            "--split",
+            "all",
+            "--json",
+            "--per-image",
+            "--truth-min-pixels",
+            "1",
+            "--model",
+        ])
+        .arg(untrained_model())
+        .arg("--dataset")
+        .arg(&data));
+    assert!(out.status.success(), "{stderr}");
+    let every: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert!(
+        every["source"].as_str().unwrap().contains("at least 1 px"),
+        "{every}"
+    );
+    let truths = |v: &Value| -> Vec<u64> {
+        v["images"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|i| i["truth"].as_u64().unwrap())
+            .collect()
+    };
+    let visible: Vec<u64> = v["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|img| {
+            let file = img["file"].as_str().unwrap();
+            let row = rows
+                .iter()
+                .find(|r| file.ends_with(r["image"].as_str().unwrap()))
+                .unwrap();
+            row["leaf_pixels"].as_object().unwrap().len() as u64
+        })
+        .collect();
+    assert_eq!(truths(&every), visible);
 }
 
 #[test]
