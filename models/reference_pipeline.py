@@ -37,12 +37,17 @@ def scale_for(w: int, h: int) -> float:
     return spec["crop_scale"]
 
 
-def plant_bbox(img: np.ndarray, trim: float = 0.02, margin: int = 12, min_pixels: int = 40):
-    h, w, _ = img.shape
+def plant_colour(img: np.ndarray) -> np.ndarray:
+    """Green or senescent pixels, white-balanced on the image median (region.rs)."""
     white = np.median(img.reshape(-1, 3), axis=0).clip(1, None)
     n = img.astype(np.float32) / white
     r, g, b = n[..., 0], n[..., 1], n[..., 2]
-    mask = (g - np.maximum(r, b) > 0.06) | ((r - b > 0.25) & (g - b > 0.15))
+    return (g - np.maximum(r, b) > 0.06) | ((r - b > 0.25) & (g - b > 0.15))
+
+
+def plant_bbox(img: np.ndarray, trim: float = 0.02, margin: int = 12, min_pixels: int = 40):
+    h, w, _ = img.shape
+    mask = plant_colour(img)
     total = int(mask.sum())
     if total < min_pixels:
         return None
@@ -139,16 +144,8 @@ PLANT_MARGIN = 16  # model pixels of slack around the plant box, as in counter.r
 ATTACH_RADIUS = 3  # output pixels, as DEFAULT_ATTACH_RADIUS in postprocess.rs
 
 
-def plant_colour(img: np.ndarray) -> np.ndarray:
-    """Green or senescent pixels, white-balanced on the image median (region.rs)."""
-    white = np.median(img.reshape(-1, 3), axis=0).clip(1, None)
-    n = img.astype(np.float32) / white
-    r, g, b = n[..., 0], n[..., 1], n[..., 2]
-    return (g - np.maximum(r, b) > 0.06) | ((r - b > 0.25) & (g - b > 0.15))
-
-
 def components(mask: np.ndarray) -> tuple[np.ndarray, int]:
-    """8-connected components by breadth-first search: labels from 1, and their number."""
+    """8-connected components by flood fill: labels from 1, and their number."""
     h, w = mask.shape
     label = np.zeros((h, w), np.int32)
     n = 0
