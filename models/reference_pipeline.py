@@ -42,7 +42,8 @@ def plant_colour(img: np.ndarray) -> np.ndarray:
     white = np.median(img.reshape(-1, 3), axis=0).clip(1, None)
     n = img.astype(np.float32) / white
     r, g, b = n[..., 0], n[..., 1], n[..., 2]
-    return (g - np.maximum(r, b) > 0.06) | ((r - b > 0.25) & (g - b > 0.15))
+    backlit = (np.maximum(np.maximum(r, g), b) < 0.5) & (g - b > 0.05) & (g >= r - 0.03)
+    return (g - np.maximum(r, b) > 0.06) | ((r - b > 0.25) & (g - b > 0.15)) | backlit
 
 
 def plant_bbox(img: np.ndarray, trim: float = 0.02, margin: int = 12, min_pixels: int = 40):

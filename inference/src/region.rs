@@ -56,16 +56,22 @@ pub fn median_colour(img: &RgbImage) -> [u8; 3] {
 
 /// Whether a pixel looks like plant tissue once white-balanced against the
 /// chamber colour `white`: green leaves by green over red and blue, senescent
-/// leaves by a yellow-brown tint the chamber never has. White balancing first
-/// matters: real chambers are lit warm, and a fixed excess-green test then
-/// fires on the white wall and the translucent panels.
+/// leaves by a yellow-brown tint the chamber never has, and leaves seen
+/// against the backlit wall by being dark with green at least level with red
+/// and clearly above blue. White balancing first matters: real chambers are
+/// lit warm, and a fixed excess-green test then fires on the white wall and
+/// the translucent panels.
 #[inline]
 pub fn is_plant_pixel(p: [u8; 3], white: [u8; 3]) -> bool {
     let n = |c: usize| f32::from(p[c]) / f32::from(white[c].max(1));
     let (r, g, b) = (n(0), n(1), n(2));
     let green = g - r.max(b) > 0.06;
     let senescent = r - b > 0.25 && g - b > 0.15;
-    green || senescent
+    // Backlit maize and sorghum leaves are nearly black-olive, e.g. (41, 44, 13)
+    // under a (252, 246, 222) wall: too dark for the chroma margin above, yet
+    // the black carrier and the aluminium grooves stay neutral.
+    let backlit = r.max(g).max(b) < 0.5 && g - b > 0.05 && g >= r - 0.03;
+    green || senescent || backlit
 }
 
 /// Bounding box `[x0, y0, x1, y1]` of the plant pixels of `img`, trimmed so
@@ -155,5 +161,11 @@ mod tests {
         assert!(!is_plant_pixel(warm_white, warm_white));
         assert!(is_plant_pixel([70, 110, 50], warm_white));
         assert!(is_plant_pixel([190, 160, 80], warm_white));
+        // Backlit leaves measured on a real crop (81-133, wall 252/246/222).
+        let wall = [252, 246, 222];
+        assert!(is_plant_pixel([41, 44, 13], wall));
+        assert!(is_plant_pixel([49, 47, 24], wall));
+        assert!(!is_plant_pixel([12, 8, 7], wall), "black is not plant");
+        assert!(!is_plant_pixel([60, 45, 30], wall), "brown soil is not plant");
     }
 }
