@@ -39,13 +39,16 @@ class AugmentConfig:
     jpeg_quality: tuple[int, int] = (35, 95)
     fringe_p: float = 0.3           # colour fringes: red and blue planes shifted by up to fringe_px
     fringe_px: int = 1
+    backlight_p: float = 0.4        # plant darkened as when seen against the backlit wall
+    backlight_gain: tuple[float, float] = (0.3, 0.8)   # multiplier on plant pixels
+    backlight_desaturate: float = 0.5                  # up to this much of the chroma is removed
 
     @classmethod
     def none(cls, crop: int | None = None) -> "AugmentConfig":
         """No augmentation at all (validation); optional centre-free crop size."""
         return cls(crop=crop, scale=(1.0, 1.0), hflip=0.0, rot90_top=False, fg_crop=0.0, brightness=0.0,
                    contrast=0.0, saturation=0.0, hue=0.0, gamma=(1.0, 1.0), white_balance=0.0,
-                   gradient=0.0, blur_p=0.0, noise_p=0.0, jpeg_p=0.0, fringe_p=0.0)
+                   gradient=0.0, blur_p=0.0, noise_p=0.0, jpeg_p=0.0, fringe_p=0.0, backlight_p=0.0)
 
 
 def _rescale(img: Image.Image, lab: np.ndarray, f: float) -> tuple[Image.Image, np.ndarray]:
@@ -93,9 +96,34 @@ def _rgb_to_hsv_shift(x: np.ndarray, hue: float, sat: float) -> np.ndarray:
     return np.asarray(Image.fromarray(hsv.astype(np.uint8), "HSV").convert("RGB")).astype(np.float32) / 255.0
 
 
-def photometric(img: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator) -> np.ndarray:
-    """Colour / illumination / sensor augmentation of a uint8 RGB image; returns uint8."""
+def backlight(x: np.ndarray, plant: np.ndarray, gain: float, desaturate: float) -> np.ndarray:
+    """Darkens and desaturates the plant pixels of float RGB ``x`` (``plant``: bool mask).
+
+    Real chamber views light the plant mostly from behind, through the white
+    wall, so leaves read as dark olive silhouettes, while the renderer's plants
+    are lit from the front. The mask edge is softened by a 3x3 box so the
+    darkening has no hard seam where the renderer anti-aliased the leaf edge.
+    """
+    m = plant.astype(np.float32)
+    p = np.pad(m, 1, mode="edge")
+    h, w = m.shape
+    soft = sum(p[dy:dy + h, dx:dx + w] for dy in range(3) for dx in range(3)) / 9.0
+    lum = x @ np.array([0.299, 0.587, 0.114], np.float32)
+    dark = (lum[..., None] + (x - lum[..., None]) * (1.0 - desaturate)) * gain
+    return x + (dark - x) * soft[..., None]
+
+
+def photometric(img: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
+                plant: np.ndarray | None = None) -> np.ndarray:
+    """Colour / illumination / sensor augmentation of a uint8 RGB image; returns uint8.
+
+    ``plant`` (bool, the image's shape) marks plant pixels for the backlight op;
+    without it that op is skipped.
+    """
     x = img.astype(np.float32) / 255.0
+    if plant is not None and cfg.backlight_p > 0 and rng.random() < cfg.backlight_p:
+        x = backlight(x, plant, float(rng.uniform(*cfg.backlight_gain)),
+                      float(rng.uniform(0.0, cfg.backlight_desaturate)))
     if cfg.hue > 0 or cfg.saturation > 0:
         x = _rgb_to_hsv_shift(x, rng.uniform(-cfg.hue, cfg.hue), 1.0 + rng.uniform(-cfg.saturation, cfg.saturation))
     if cfg.white_balance > 0:
@@ -137,7 +165,7 @@ def photometric(img: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator) -
 
 
 def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
-            top_view: bool = False) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]]:
+            top_view: bool = False, label_divisor: int = 1000) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]]:
     """Augment an RGB PIL image and its (H, W) label.
 
     Returns ``(rgb, label, window)``: the uint8 crop (size x size x 3), the
@@ -158,5 +186,6 @@ def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.ran
     size = cfg.crop if cfg.crop is not None else min(label.shape)
     arr, label = _pad_to(arr, label, size, rng)
     y0, x0 = _crop_origin(label, size, rng, cfg.fg_crop)
-    arr = photometric(np.ascontiguousarray(arr[y0:y0 + size, x0:x0 + size]), cfg, rng)
+    plant = label[y0:y0 + size, x0:x0 + size] >= label_divisor  # class >= 1: leaf, stem or panicle
+    arr = photometric(np.ascontiguousarray(arr[y0:y0 + size, x0:x0 + size]), cfg, rng, plant)
     return arr, np.ascontiguousarray(label), (y0, x0, size, size)

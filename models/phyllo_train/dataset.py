@@ -102,7 +102,8 @@ class PanopticDataset(Dataset):
         if cfg.crop is None:
             # Full tiles: crop back to the original size so H, W stay multiples of 32.
             cfg = AugmentConfig(**{**cfg.__dict__, "crop": min(label.shape) // 32 * 32})
-        rgb, label, window = augment(img, label, cfg, rng, top_view=is_top_view(row))
+        rgb, label, window = augment(img, label, cfg, rng, top_view=is_top_view(row),
+                                     label_divisor=self.contract.label_divisor)
         t = make_targets(label, self.contract, window=window)
         target = {
             "semantic": torch.from_numpy(t.semantic),

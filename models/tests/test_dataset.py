@@ -88,3 +88,21 @@ def test_colour_fringes_shift_only_red_and_blue():
             assert cols.min() >= 14 and cols.max() <= 17
             moved += int(not np.array_equal(out[..., c], img[..., c]))
     assert moved > 0
+
+
+def test_backlight_darkens_only_the_plant():
+    """The backlight op darkens labelled plant pixels and leaves the chamber away from them alone."""
+    from phyllo_train.augment import photometric
+
+    img = np.full((32, 32, 3), 230, np.uint8)
+    img[8:24, 12:20] = (60, 140, 50)  # a leaf
+    plant = np.zeros((32, 32), bool)
+    plant[8:24, 12:20] = True
+    cfg = AugmentConfig.none()
+    cfg.backlight_p = 1.0
+    out = photometric(img, cfg, np.random.default_rng(0), plant).astype(int)
+    assert out[12:20, 14:18].mean() < img[12:20, 14:18].astype(int).mean() * 0.85
+    np.testing.assert_array_equal(out[:, :10], img[:, :10])
+    np.testing.assert_array_equal(out[:, 22:], img[:, 22:])
+    # Without a plant mask the op cannot apply.
+    np.testing.assert_array_equal(photometric(img, cfg, np.random.default_rng(0)), img)

@@ -67,6 +67,14 @@ pub struct PlantTraits {
     pub tint: [f32; 3],
     /// Panicle appearance day, length and radius, if the preset has one.
     pub panicle: Option<(f32, f32, f32)>,
+    /// How much wider a sheath is at its collar than at its node (1: a
+    /// plain tube). Real sheaths loosen toward the collar, so the stem looks
+    /// knobbly where leaves leave it.
+    pub sheath_flare: f32,
+    /// Whether the sheaths have the blades' green instead of the stem's
+    /// colour, as on most real maize and sorghum: the model must learn that a
+    /// green tube hugging the stem is stem, not a leaf of its own.
+    pub green_sheaths: bool,
 }
 
 /// State of one leaf on one day.
@@ -211,12 +219,17 @@ impl PlantTraits {
             .as_ref()
             .map(|p| (r.range(p.emergence_day), r.range(p.length), r.range(p.radius)));
         let stem_radius = r.range(s.base_radius);
+        // Drawn last so that every earlier trait of a seed stays as it was.
+        let sheath_flare = r.uniform(1.0, 1.7);
+        let green_sheaths = r.chance(0.6);
         let mut traits = PlantTraits {
             preset: preset.name.clone(),
             leaves,
             stem_radius,
             tint,
             panicle,
+            sheath_flare,
+            green_sheaths,
         };
         traits.apply_rank_angle(per_rank.to_radians());
         traits

@@ -147,17 +147,33 @@ pub fn blade(
     });
 }
 
+/// Where a sheath sits and how it widens.
+#[derive(Debug, Clone, Copy)]
+pub struct SheathShape {
+    /// Radius of the stem it wraps.
+    pub stem_radius: f32,
+    /// 0 for the lowest leaf's sheath up to 1 for the top one: outer sheaths
+    /// are slightly wider so stacked sheaths do not z-fight.
+    pub layer: f32,
+    /// Radius at the collar relative to the node.
+    pub flare: f32,
+}
+
 /// Appends the leaf's sheath: a closed tube around the stem from its node up
-/// to the collar (labelled as stem: it reads as stem in the images).
-pub fn sheath(mesh: &mut Mesh, state: &LeafState, stem_radius: f32, layer: f32, material: u16) {
+/// to the collar, widening by `shape.flare` (labelled as stem: it reads as
+/// stem in the images).
+pub fn sheath(mesh: &mut Mesh, state: &LeafState, shape: SheathShape, material: u16) {
     if state.sheath_length <= 1e-4 {
         return;
     }
-    let r = stem_radius * (1.08 + 0.04 * layer);
+    let r0 = shape.stem_radius * (1.08 + 0.04 * shape.layer);
     let rings = 6;
     let rows: Vec<Vec<Vec3>> = (0..=rings)
         .map(|k| {
-            let y = state.node_height + state.sheath_length * k as f32 / rings as f32;
+            let f = k as f32 / rings as f32;
+            let y = state.node_height + state.sheath_length * f;
+            // Most of the loosening happens near the collar.
+            let r = r0 * (1.0 + (shape.flare - 1.0) * f * f);
             super::ring(r, y, SHEATH_SIDES)
         })
         .collect();

@@ -39,13 +39,21 @@ impl Plant {
         let mut mesh = Mesh::default();
         mesh.begin_group("stem");
         stem(&mut mesh, state.stem_height, state.stem_radius);
+        let sheath_material = if traits.green_sheaths {
+            materials::LEAF
+        } else {
+            materials::STEM
+        };
         for (k, leaf) in state.leaves.iter().enumerate() {
             leaf::sheath(
                 &mut mesh,
                 leaf,
-                state.stem_radius,
-                k as f32 / state.leaves.len().max(1) as f32,
-                materials::STEM,
+                leaf::SheathShape {
+                    stem_radius: state.stem_radius,
+                    layer: k as f32 / state.leaves.len().max(1) as f32,
+                    flare: traits.sheath_flare,
+                },
+                sheath_material,
             );
         }
         for (k, leaf) in state.leaves.iter().enumerate() {
