@@ -143,6 +143,31 @@ fn overlay_is_a_png_of_the_input_size() {
     assert_eq!((overlay.width(), overlay.height()), (1227, 1028));
 }
 
+/// Backlit lower leaves are dark olive; the plant region must still reach
+/// them, or their instances are dropped as lying outside the plant.
+#[test]
+fn plant_region_reaches_the_dark_lower_leaves_of_a_real_crop() {
+    let dir = dev_data().expect("development data");
+    // A tall maize plant whose lowest leaves hang down to y = 690 of 751.
+    let img = dir.join("crops/81-133-Tzi25_2018-09-18_12-47-11_Vis_SV_108.Crp.jpg");
+    let (out, stdout, stderr) = run(phyllo()
+        .arg("count")
+        .arg("--json")
+        .arg("--model")
+        .arg(untrained_model())
+        .arg(&img));
+    assert!(out.status.success(), "{stderr}");
+    let v = &json_lines(&stdout)[0];
+    let region: Vec<u64> = v["region"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_u64().unwrap())
+        .collect();
+    assert!(region[3] >= 690, "region {region:?} cuts off the lower leaves");
+    assert!(region[1] <= 60, "region {region:?} cuts off the top leaves");
+}
+
 fn count_with(model: &Path, envs: &[(&str, &str)]) -> (i32, String) {
     let img = dev_images("crops", 1).remove(0);
     let mut cmd = phyllo();
