@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Compares two models image by image on one phyllo-gen dataset: each model's
+# exact / within ±1 / RMSE / bias, then how many images each counts closer to
+# the truth and a two-sided sign test on those. Differences with p well above
+# 0.05 are noise.
+# Usage: scripts/compare-models.sh DATASET MODEL_A MODEL_B [extra phyllo eval args...]
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+usage="usage: compare-models.sh DATASET MODEL_A MODEL_B [phyllo eval args...]"
+data=${1:?$usage}
+a=${2:?$usage}
+b=${3:?$usage}
+shift 3
+bin=$root/target/release/phyllo
+cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+"$bin" eval --threads "${THREADS:-2}" --model "$a" --dataset "$data" --per-image "$@" 2>/dev/null >"$tmp/a"
+"$bin" eval --threads "${THREADS:-2}" --model "$b" --dataset "$data" --per-image "$@" 2>/dev/null >"$tmp/b"
+python3 - "$tmp/a" "$tmp/b" <<'PY'
+import math, re, sys
+
+def load(path):
+    name, rows = "?", {}
+    for line in open(path):
+        if line.startswith("model"):
+            name = line.split()[1]
+        m = re.match(r"(\S+)\t\S+\ttrue (\d+)\tpredicted (\d+)", line)
+        if m:
+            rows[m[1]] = (int(m[2]), int(m[3]))
+    return name, rows
+
+(na, a), (nb, b) = load(sys.argv[1]), load(sys.argv[2])
+print("| model | images | exact | within ±1 | RMSE | bias |")
+print("|---|---:|---:|---:|---:|---:|")
+for name, rows in ((na, a), (nb, b)):
+    e = [p - t for t, p in rows.values()]
+    n = len(e)
+    print(f"| {name} | {n} | {100 * sum(x == 0 for x in e) / n:.1f}% | "
+          f"{100 * sum(abs(x) <= 1 for x in e) / n:.1f}% | {math.sqrt(sum(x * x for x in e) / n):.3f} | "
+          f"{sum(e) / n:+.3f} |")
+err = lambda rows, k: abs(rows[k][1] - rows[k][0])
+wa = sum(err(a, k) < err(b, k) for k in a)
+wb = sum(err(b, k) < err(a, k) for k in a)
+n, k = wa + wb, min(wa, wb)
+p = min(1.0, 2 * sum(math.comb(n, i) for i in range(k + 1)) / 2 ** n) if n else 1.0
+print(f"\ncloser to the truth: {na} on {wa} images, {nb} on {wb}; sign test p = {p:.3f}")
+PY
