@@ -102,7 +102,7 @@ pub async fn run(
             _ = shutdown.wait_for(|s| *s) => break,
             Some(c) = cand_rx.recv() => {
                 match intake.note(c) {
-                    Some(ScanRequest::Dir(d)) => spawn_scan(&config, &filter, d, &cand_tx, &scanning),
+                    Some(ScanRequest::Dir(d)) => scan_new_dir(&config, &filter, d, &cand_tx, &scanning),
                     Some(ScanRequest::All) => spawn_scan(&config, &filter, filter.root().to_path_buf(), &cand_tx, &scanning),
                     None => {}
                 }
@@ -164,6 +164,39 @@ fn start_watch(filter: &Filter, tx: &mpsc::Sender<Candidate>) -> Option<Watch> {
 /// Scans `dir` on a blocking thread, sending files not yet done as candidates.
 /// At most one scan runs at a time; a request during a scan is dropped, since
 /// the running scan or the next periodic one covers it.
+/// When a new directory is scanned again after it appeared. `notify` adds its
+/// inotify watch on a new directory only after our handler has taken the
+/// whole batch of events (and our handler blocks while the intake is behind),
+/// so files can land in the directory after the first scan and before the
+/// watch exists; one of these later scans starts after the watch is in place.
+const NEW_DIR_RESCANS: [Duration; 4] = [
+    Duration::from_millis(500),
+    Duration::from_secs(2),
+    Duration::from_secs(10),
+    Duration::from_secs(60),
+];
+
+/// Scans a directory that just appeared, now and again at [`NEW_DIR_RESCANS`].
+fn scan_new_dir(
+    config: &Config,
+    filter: &Filter,
+    dir: PathBuf,
+    tx: &mpsc::Sender<Candidate>,
+    scanning: &Arc<AtomicBool>,
+) {
+    spawn_scan(config, filter, dir.clone(), tx, scanning);
+    let (config, filter, tx, scanning) = (config.clone(), filter.clone(), tx.clone(), scanning.clone());
+    tokio::spawn(async move {
+        for delay in NEW_DIR_RESCANS {
+            tokio::time::sleep(delay).await;
+            if tx.is_closed() {
+                return;
+            }
+            spawn_scan(&config, &filter, dir.clone(), &tx, &scanning);
+        }
+    });
+}
+
 fn spawn_scan(
     config: &Config,
     filter: &Filter,
