@@ -161,9 +161,6 @@ fn start_watch(filter: &Filter, tx: &mpsc::Sender<Candidate>) -> Option<Watch> {
     }
 }
 
-/// Scans `dir` on a blocking thread, sending files not yet done as candidates.
-/// At most one scan runs at a time; a request during a scan is dropped, since
-/// the running scan or the next periodic one covers it.
 /// When a new directory is scanned again after it appeared. `notify` adds its
 /// inotify watch on a new directory only after our handler has taken the
 /// whole batch of events (and our handler blocks while the intake is behind),
@@ -197,6 +194,9 @@ fn scan_new_dir(
     });
 }
 
+/// Scans `dir` on a blocking thread, sending files not yet done as candidates.
+/// At most one scan runs at a time; a request during a scan is dropped, since
+/// the running scan or the next periodic one covers it.
 fn spawn_scan(
     config: &Config,
     filter: &Filter,
