@@ -25,16 +25,22 @@ fn dev_images(sub: &str, n: usize) -> Vec<PathBuf> {
     v
 }
 
-#[test]
-fn counts_real_frames_and_crops_as_json() {
-    let mut files = dev_images("images", 3);
-    files.extend(dev_images("crops", 3));
-    let (out, stdout, stderr) = run(phyllo()
+/// `phyllo count --json` with the untrained model (fast; the region and the
+/// JSON shape do not depend on the weights).
+fn count_json_untrained(files: &[PathBuf]) -> (std::process::Output, String, String) {
+    run(phyllo()
         .arg("count")
         .arg("--json")
         .arg("--model")
         .arg(untrained_model())
-        .args(&files));
+        .args(files))
+}
+
+#[test]
+fn counts_real_frames_and_crops_as_json() {
+    let mut files = dev_images("images", 3);
+    files.extend(dev_images("crops", 3));
+    let (out, stdout, stderr) = count_json_untrained(&files);
     assert!(out.status.success(), "stderr: {stderr}");
     assert!(
         stderr.contains("UNTRAINED"),
@@ -150,12 +156,7 @@ fn plant_region_reaches_the_dark_lower_leaves_of_a_real_crop() {
     let dir = dev_data().expect("development data");
     // A tall maize plant whose lowest leaves hang down to y = 690 of 751.
     let img = dir.join("crops/81-133-Tzi25_2018-09-18_12-47-11_Vis_SV_108.Crp.jpg");
-    let (out, stdout, stderr) = run(phyllo()
-        .arg("count")
-        .arg("--json")
-        .arg("--model")
-        .arg(untrained_model())
-        .arg(&img));
+    let (out, stdout, stderr) = count_json_untrained(&[img]);
     assert!(out.status.success(), "{stderr}");
     let v = &json_lines(&stdout)[0];
     let region: Vec<u64> = v["region"]
