@@ -118,6 +118,12 @@ pub struct InputSpec {
     pub crop_scale: f32,
     /// Overlap between neighbouring tiles in pixels.
     pub tile_overlap: u32,
+    /// A plant whose leaves span fewer rows than this many model pixels
+    /// (margins included) is counted again, enlarged to it, so young plants'
+    /// leaves are seen at a size the model resolves (0: never enlarge).
+    pub zoom_plant_height: u32,
+    /// Largest such enlargement.
+    pub max_zoom: f32,
 }
 
 /// Model output tensors.
@@ -211,6 +217,9 @@ impl Contract {
         }
         if self.input.tile_overlap >= self.input.tile {
             return invalid("tile_overlap must be smaller than tile".into());
+        }
+        if !(self.input.max_zoom >= 1.0 && self.input.max_zoom <= 8.0) {
+            return invalid("max_zoom must lie in 1..=8".into());
         }
         if self.postprocess.nms_kernel.is_multiple_of(2) {
             return invalid("nms_kernel must be odd".into());

@@ -17,6 +17,7 @@ use crate::result::{CountResult, Instance, StageTimings};
 use crate::runtime;
 use crate::stitch::{stitch, TileOutputs};
 use crate::tiling::{batch_tensor, prepare, Canvas};
+use crate::zoom::{instances_height, Zoom};
 
 /// Slack around the plant's box, in model pixels, within which instance
 /// centres are still taken as plant.
@@ -46,6 +47,9 @@ pub struct CounterConfig {
     /// 1.0 for images already at the contract's scale, such as phyllo-gen
     /// dataset crops.
     pub scale: Option<f32>,
+    /// Plant height small plants are enlarged to, in model pixels (0: never
+    /// enlarge); `None` takes the contract's `zoom_plant_height`.
+    pub zoom_plant_height: Option<u32>,
     /// Post-processing parameters.
     pub postprocess: PostprocessParams,
     /// Decoder limits.
@@ -62,6 +66,7 @@ impl Default for CounterConfig {
             batch_size: 4,
             region: RegionMode::Auto,
             scale: None,
+            zoom_plant_height: None,
             postprocess: PostprocessParams::default(),
             limits: DecodeLimits::default(),
         }
@@ -172,9 +177,47 @@ impl Counter {
     /// Analyses an already decoded image.
     pub fn analyse_image(&self, img: &RgbImage) -> Result<Analysis, InferenceError> {
         let c = self.contract;
+        let mut zoom = Zoom::from_contract(c);
+        if let Some(h) = self.config.zoom_plant_height {
+            zoom.plant_height = h;
+        }
+        let mut timings = StageTimings::default();
+        let (mut canvas, mut pan) = self.pass(img, self.config.scale, &mut timings)?;
+        let mut tiles = canvas.tiles.len() as u32;
+        // A fixed region bounds the chamber, not the plant; only an
+        // automatic one may be zoomed into.
+        if self.config.region == RegionMode::Auto {
+            let z = instances_height(&pan, c.outputs.stride).map_or(1.0, |h| zoom.factor(h));
+            if z > 1.0 {
+                (canvas, pan) = self.pass(img, Some(canvas.scale * z), &mut timings)?;
+                tiles += canvas.tiles.len() as u32;
+            }
+        }
+        let t = Instant::now();
+        let mut result = to_result(c, &pan, &canvas, img.dimensions());
+        result.tiles = tiles;
+        timings.postprocess += ms(t);
+        timings.total = timings.tile + timings.inference + timings.postprocess;
+        result.ms = timings;
+        Ok(Analysis {
+            result,
+            panoptic: pan,
+            canvas,
+        })
+    }
+
+    /// One pass through tiling, the model and post-processing at `scale`
+    /// (or the contract's), adding its stage times to `timings`.
+    fn pass(
+        &self,
+        img: &RgbImage,
+        scale: Option<f32>,
+        timings: &mut StageTimings,
+    ) -> Result<(Canvas, Panoptic), InferenceError> {
+        let c = self.contract;
         let t0 = Instant::now();
-        let canvas = prepare(c, img, self.config.region, self.config.scale);
-        let tile_ms = ms(t0);
+        let canvas = prepare(c, img, self.config.region, scale);
+        timings.tile += ms(t0);
 
         let t1 = Instant::now();
         let mut outputs: Option<TileOutputs> = None;
@@ -187,7 +230,7 @@ impl Counter {
             }
         }
         let outputs = outputs.expect("a canvas has at least one tile");
-        let inference_ms = ms(t1);
+        timings.inference += ms(t1);
 
         let t2 = Instant::now();
         let (cw, ch) = canvas.image.dimensions();
@@ -204,21 +247,8 @@ impl Counter {
                 x >= (x0 - m) as f64 && x < (x1 + m) as f64 && y >= (y0 - m) as f64 && y < (y1 + m) as f64
             });
         }
-        let result = to_result(c, &pan, &canvas, img.dimensions());
-        let post_ms = ms(t2);
-        let mut result = result;
-        result.ms = StageTimings {
-            decode: 0.0,
-            tile: tile_ms,
-            inference: inference_ms,
-            postprocess: post_ms,
-            total: tile_ms + inference_ms + post_ms,
-        };
-        Ok(Analysis {
-            result,
-            panoptic: pan,
-            canvas,
-        })
+        timings.postprocess += ms(t2);
+        Ok((canvas, pan))
     }
 }
 
@@ -255,6 +285,7 @@ pub fn to_result(c: &Contract, pan: &Panoptic, canvas: &Canvas, size: (u32, u32)
         instances,
         image_size: [size.0, size.1],
         region: canvas.region,
+        scale: canvas.scale,
         tiles: canvas.tiles.len() as u32,
         ms: StageTimings::default(),
     }

@@ -6,6 +6,9 @@
 //! decode ─► region ─► tiling ─► model (ONNX Runtime) ─► stitch ─► postprocess ─► attachment ─► CountResult
 //! ```
 //!
+//! A small plant goes through the stages twice: [`zoom`] measures it on the
+//! first pass and the second sees it enlarged.
+//!
 //! [`Counter`] ties the stages together; the daemon and the CLI only use it.
 
 pub mod attachment;
@@ -20,6 +23,7 @@ pub mod result;
 pub mod runtime;
 pub mod stitch;
 pub mod tiling;
+pub mod zoom;
 
 pub use counter::{Counter, CounterConfig};
 pub use error::InferenceError;

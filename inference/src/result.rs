@@ -47,7 +47,12 @@ pub struct CountResult {
     pub image_size: [u32; 2],
     /// Plant region `[x0, y0, x1, y1]` in original-image pixels.
     pub region: [u32; 4],
-    /// Number of 512x512 tiles run through the model.
+    /// Model pixels per image pixel the count was made at (above the
+    /// contract's scale when a small plant was enlarged).
+    #[serde(default)]
+    pub scale: f32,
+    /// Number of 512x512 tiles run through the model (both passes when a
+    /// small plant was enlarged).
     pub tiles: u32,
     /// Time per stage.
     pub ms: StageTimings,

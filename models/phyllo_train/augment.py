@@ -63,6 +63,42 @@ def _rescale(img: Image.Image, lab: np.ndarray, f: float) -> tuple[Image.Image, 
     return img, lab[yi][:, xi]
 
 
+# The daemon measures a plant by the rows its instances span on a first pass,
+# plus a 12 px margin above and below (inference/src/zoom.rs); here the
+# label's instance pixels stand in for the instances the model would find.
+_BOX_MARGIN = 12
+_MIN_ZOOM = 1.1  # smaller enlargements are skipped by the daemon too
+
+
+def plant_rows(label: np.ndarray, label_divisor: int) -> tuple[int, int] | None:
+    """Row span ``[y0, y1)`` of the label's instance pixels with margins, or None."""
+    rows = np.nonzero((label % label_divisor != 0).any(1))[0]
+    if len(rows) == 0:
+        return None
+    return int(rows[0]) - _BOX_MARGIN, int(rows[-1]) + 1 + _BOX_MARGIN
+
+
+def plant_zoom(label: np.ndarray, label_divisor: int, plant_height: int, max_zoom: float) -> float:
+    """The contract's enlargement for the plant in ``label`` (1.0 when none)."""
+    if plant_height <= 0:
+        return 1.0
+    rows = plant_rows(label, label_divisor)
+    if rows is None:
+        return 1.0
+    z = float(np.clip(plant_height / max(rows[1] - rows[0], 1), 1.0, max(max_zoom, 1.0)))
+    return z if z >= _MIN_ZOOM else 1.0
+
+
+def _window_around_plant(img: Image.Image, label: np.ndarray, label_divisor: int,
+                         margin: int) -> tuple[Image.Image, np.ndarray]:
+    """The plant's bounding box grown by ``margin`` px, clipped to the image."""
+    ys, xs = np.nonzero(label >= label_divisor)
+    h, w = label.shape
+    y0, y1 = max(int(ys.min()) - margin, 0), min(int(ys.max()) + 1 + margin, h)
+    x0, x1 = max(int(xs.min()) - margin, 0), min(int(xs.max()) + 1 + margin, w)
+    return img.crop((x0, y0, x1, y1)), label[y0:y1, x0:x1]
+
+
 def _pad_to(img: np.ndarray, lab: np.ndarray, size: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Pad to at least ``size`` per side with the edge colour (the chamber's wall) and background label."""
     h, w = lab.shape
@@ -165,18 +201,27 @@ def photometric(img: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
 
 
 def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
-            top_view: bool = False, label_divisor: int = 1000) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]]:
+            top_view: bool = False, label_divisor: int = 1000,
+            zoom: tuple[int, float] = (0, 1.0)) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]]:
     """Augment an RGB PIL image and its (H, W) label.
 
     Returns ``(rgb, label, window)``: the uint8 crop (size x size x 3), the
     *whole* geometrically transformed label, and the crop window
     ``(y0, x0, h, w)`` within it. Targets are computed from the whole label so
     that instances cut by the crop keep the centre of the whole instance, as
-    the daemon's tile stitching expects.
+    the daemon's tile stitching expects. ``zoom`` is the contract's
+    ``(zoom_plant_height, max_zoom)``: a small plant is enlarged as the
+    daemon enlarges it, before the scale jitter.
     """
     lo, hi = cfg.scale
-    if hi > lo:
-        img, label = _rescale(img, label, float(np.exp(rng.uniform(np.log(lo), np.log(hi)))))
+    f = float(np.exp(rng.uniform(np.log(lo), np.log(hi)))) if hi > lo else 1.0
+    z = plant_zoom(label, label_divisor, *zoom)
+    if z > 1.0:
+        # Only the plant's surroundings are enlarged: a whole frame at 3x
+        # would make every target costly, and the chamber far from the plant
+        # is seen in unzoomed samples anyway.
+        img, label = _window_around_plant(img, label, label_divisor, margin=(cfg.crop or 256) // 2)
+    img, label = _rescale(img, label, z * f)
     arr = np.asarray(img.convert("RGB"))
     if rng.random() < cfg.hflip:
         arr, label = arr[:, ::-1], label[:, ::-1]

@@ -33,6 +33,8 @@ class Contract:
     frame_height: int
     crop_scale: float
     tile_overlap: int
+    zoom_plant_height: int
+    max_zoom: float
     stride: int
     semantic_name: str
     center_name: str
@@ -75,6 +77,8 @@ def _parse(raw: dict) -> Contract:
         frame_height=int(inp["frame_height"]),
         crop_scale=float(inp["crop_scale"]),
         tile_overlap=int(inp["tile_overlap"]),
+        zoom_plant_height=int(inp.get("zoom_plant_height", 0)),
+        max_zoom=float(inp.get("max_zoom", 1.0)),
         stride=int(out["stride"]),
         semantic_name=out["semantic"],
         center_name=out["center"],

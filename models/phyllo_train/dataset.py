@@ -103,7 +103,8 @@ class PanopticDataset(Dataset):
             # Full tiles: crop back to the original size so H, W stay multiples of 32.
             cfg = AugmentConfig(**{**cfg.__dict__, "crop": min(label.shape) // 32 * 32})
         rgb, label, window = augment(img, label, cfg, rng, top_view=is_top_view(row),
-                                     label_divisor=self.contract.label_divisor)
+                                     label_divisor=self.contract.label_divisor,
+                                     zoom=(self.contract.zoom_plant_height, self.contract.max_zoom))
         t = make_targets(label, self.contract, window=window)
         target = {
             "semantic": torch.from_numpy(t.semantic),

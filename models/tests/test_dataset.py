@@ -106,3 +106,30 @@ def test_backlight_darkens_only_the_plant():
     np.testing.assert_array_equal(out[:, 22:], img[:, 22:])
     # Without a plant mask the op cannot apply.
     np.testing.assert_array_equal(photometric(img, cfg, np.random.default_rng(0)), img)
+
+
+def test_zoom_enlarges_small_plants_as_the_daemon_does():
+    """The contract's zoom: a plant whose instances span few rows is enlarged
+    to the zoom height (margins included), by at most max_zoom; tall plants
+    and enlargements under 1.1 are left alone."""
+    from PIL import Image
+
+    from phyllo_train.augment import augment, plant_rows, plant_zoom
+
+    lab = np.zeros((514, 614), np.uint16)
+    lab[300:376, 300:304] = 2000          # stem: stuff, not measured
+    lab[300:360, 290:300] = 1001          # two leaves spanning rows 296..376
+    lab[336:376, 304:320] = 1002
+    assert plant_rows(lab, 1000) == (300 - 12, 376 + 12)
+    assert abs(plant_zoom(lab, 1000, 160, 2.0) - 160 / 100) < 1e-6
+    assert plant_zoom(lab, 1000, 320, 2.0) == 2.0
+    assert plant_zoom(lab, 1000, 105, 2.0) == 1.0   # 1.05: not worth it
+    assert plant_zoom(lab, 1000, 0, 2.0) == 1.0
+    assert plant_zoom(np.zeros_like(lab), 1000, 320, 2.0) == 1.0
+
+    img = Image.fromarray(np.full((514, 614, 3), 230, np.uint8))
+    cfg = AugmentConfig.none(crop=256)
+    _, out, _ = augment(img, lab, cfg, np.random.default_rng(0), zoom=(320, 2.0))
+    # Both leaves are twice as large, and the instance ids survive.
+    assert (out == 1001).sum() == 4 * (lab == 1001).sum()
+    assert (out == 1002).sum() == 4 * (lab == 1002).sum()

@@ -31,9 +31,8 @@ fn evaluates_a_generated_dataset_against_its_labels() {
         v["mean_iou"].as_f64().is_some() && v["panoptic_quality"].as_f64().is_some(),
         "{v}"
     );
-    // The eval's truth is read from the label PNGs; it must agree with the
-    // generator's own per-leaf areas in the manifest at the contract's
-    // minimum countable area (24 output px at stride 2 = 96 image px).
+    // The eval's truth is read from the label PNGs; by default it must agree
+    // with the generator's own list of visible leaves in the manifest.
     let manifest = std::fs::read_to_string(data.join("manifest.jsonl")).unwrap();
     let rows: Vec<Value> = manifest
         .lines()
@@ -45,20 +44,15 @@ fn evaluates_a_generated_dataset_against_its_labels() {
             .iter()
             .find(|r| file.ends_with(r["image"].as_str().unwrap()))
             .unwrap();
-        let countable = row["leaf_pixels"]
-            .as_object()
-            .unwrap()
-            .values()
-            .filter(|a| a.as_u64().unwrap() >= 96)
-            .count();
-        assert_eq!(img["truth"].as_u64().unwrap() as usize, countable, "{file}");
+        let visible = row["leaf_pixels"].as_object().unwrap().len();
+        assert_eq!(img["truth"].as_u64().unwrap() as usize, visible, "{file}");
     }
     for p in ["scatter.png", "error_histogram.png"] {
         let img = image::open(plots.join(p)).unwrap();
         assert!(img.width() > 300, "{p}");
     }
 
-    // `--truth-min-pixels 1` counts every visible leaf as truth.
+    // `--truth-min-pixels 96` counts only leaves of at least 96 px.
     let (out, stdout, stderr) = run(phyllo()
         .args([
             "eval",
@@ -67,17 +61,17 @@ fn evaluates_a_generated_dataset_against_its_labels() {
             "--json",
             "--per-image",
             "--truth-min-pixels",
-            "1",
+            "96",
             "--model",
         ])
         .arg(untrained_model())
         .arg("--dataset")
         .arg(&data));
     assert!(out.status.success(), "{stderr}");
-    let every: Value = serde_json::from_str(stdout.trim()).unwrap();
+    let large: Value = serde_json::from_str(stdout.trim()).unwrap();
     assert!(
-        every["source"].as_str().unwrap().contains("at least 1 px"),
-        "{every}"
+        large["source"].as_str().unwrap().contains("at least 96 px"),
+        "{large}"
     );
     let truths = |v: &Value| -> Vec<u64> {
         v["images"]
@@ -87,7 +81,7 @@ fn evaluates_a_generated_dataset_against_its_labels() {
             .map(|i| i["truth"].as_u64().unwrap())
             .collect()
     };
-    let visible: Vec<u64> = v["images"]
+    let countable: Vec<u64> = v["images"]
         .as_array()
         .unwrap()
         .iter()
@@ -97,10 +91,15 @@ fn evaluates_a_generated_dataset_against_its_labels() {
                 .iter()
                 .find(|r| file.ends_with(r["image"].as_str().unwrap()))
                 .unwrap();
-            row["leaf_pixels"].as_object().unwrap().len() as u64
+            row["leaf_pixels"]
+                .as_object()
+                .unwrap()
+                .values()
+                .filter(|a| a.as_u64().unwrap() >= 96)
+                .count() as u64
         })
         .collect();
-    assert_eq!(truths(&every), visible);
+    assert_eq!(truths(&large), countable);
 }
 
 #[test]

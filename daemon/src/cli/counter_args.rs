@@ -26,6 +26,10 @@ pub struct CounterArgs {
     /// (e.g. 0.5 for crops cut from 1227x1028 half-size frames).
     #[arg(long, value_name = "FACTOR", value_parser = parse_scale)]
     pub scale: Option<f32>,
+    /// Enlarge plants whose box is shorter than this many model pixels to
+    /// that height (0: never; default: the contract's).
+    #[arg(long, value_name = "PIXELS")]
+    pub zoom_height: Option<u32>,
     /// Post-processing: instances apart from the plant's body by more than
     /// this many model output pixels are dropped (0: keep every instance).
     #[arg(long, value_name = "PIXELS", default_value_t = DEFAULT_ATTACH_RADIUS)]
@@ -55,6 +59,7 @@ impl CounterArgs {
             intra_threads: self.threads,
             region: parse_region(&self.region)?,
             scale: self.scale,
+            zoom_plant_height: self.zoom_height,
             postprocess,
             ..CounterConfig::default()
         })

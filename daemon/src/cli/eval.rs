@@ -6,7 +6,6 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context};
 use phyllo_contract::Contract;
-use phyllo_inference::region::RegionMode;
 use phyllo_inference::Counter;
 use serde_json::json;
 
@@ -28,10 +27,10 @@ pub struct Args {
     #[arg(long, default_value = "val")]
     pub split: String,
     /// Dataset truth: the smallest visible leaf area, in image pixels, that
-    /// counts as a leaf (default: the contract's minimum leaf area, 96 px at
-    /// stride 2; 1 counts every visible leaf).
-    #[arg(long, value_name = "PIXELS", requires = "dataset")]
-    pub truth_min_pixels: Option<usize>,
+    /// counts as a leaf (default 1: every leaf visible in the label, as a
+    /// person counting on the camera's full-resolution frame would).
+    #[arg(long, value_name = "PIXELS", default_value_t = 1, requires = "dataset")]
+    pub truth_min_pixels: usize,
     /// CSV of human counts with `file` and `leaf_count` columns.
     #[arg(long, value_name = "CSV", requires = "images")]
     pub counts: Option<PathBuf>,
@@ -55,9 +54,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut config = args.counter.config()?;
     let dataset_mode = args.dataset.is_some();
     if dataset_mode {
-        // Dataset images are already crops at the contract's scale.
-        config.scale = Some(1.0);
-        config.region = RegionMode::Full;
+        // phyllo-gen renders at the contract's scale; --scale still overrides.
+        config.scale = config.scale.or(Some(1.0));
     }
     let counter = Counter::new(config)?;
     if !counter.model_info().trained {
@@ -72,11 +70,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let title;
     if let Some(dir) = &args.dataset {
         let split = (args.split != "all").then_some(args.split.as_str());
-        // A leaf the model cannot resolve at its stride is not a countable leaf.
-        let min_pixels = args
-            .truth_min_pixels
-            .unwrap_or((c.postprocess.min_leaf_area * c.outputs.stride * c.outputs.stride) as usize)
-            .max(1);
+        // Until 2026-11-24 the default was the post-processing's minimum leaf
+        // area (96 px), which tied the truth to a tuned parameter and gave
+        // seedlings with five visible leaves a truth of 0.
+        let min_pixels = args.truth_min_pixels.max(1);
         title = format!(
             "{} ({}; truth: leaves of at least {min_pixels} px)",
             dir.display(),
