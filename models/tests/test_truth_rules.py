@@ -23,5 +23,5 @@ def test_main_scores_both_rules(tmp_path, capsys):
     per.write_text(f"{tmp_path}/images/a.png\t0\ttrue 3\tpredicted 4\n{tmp_path}/images/b.png\t0\ttrue 5\tpredicted 6\n")
     assert main(["--dataset", str(tmp_path), str(per)]) == 0
     out = capsys.readouterr().out
-    assert "| leaves >= min area (phyllo eval) | 2 | 0.0% | 100.0% | 1.000 | 1.000 | +1.000 |" in out
+    assert "| as phyllo eval ran (--truth-min-pixels) | 2 | 0.0% | 100.0% | 1.000 | 1.000 | +1.000 |" in out
     assert "| every visible leaf | 2 | 100.0% | 100.0% | 0.000 | 0.000 | +0.000 |" in out

@@ -246,3 +246,46 @@ fn unreadable_and_wrong_contract_models_are_refused_with_the_reason() {
         "says what differs: {err}"
     );
 }
+
+/// The contract's zoom with the shipped model: a seedling (its leaves span
+/// far fewer than `zoom_plant_height` rows) is counted a second time,
+/// enlarged, and a grown plant is not; `--zoom-height 0` turns it off.
+#[test]
+fn seedlings_are_counted_again_enlarged_and_grown_plants_are_not() {
+    let tmp = tempfile::tempdir().unwrap();
+    let gen = phyllo_e2e::binary("phyllo-gen", "phyllo-gen");
+    let frame = |age: &str| {
+        let out = tmp.path().join(format!("age{age}.png"));
+        let (o, _, e) = run(std::process::Command::new(&gen)
+            .args(["render", "--seed", "3", "--spp", "4", "--age", age, "--out"])
+            .arg(&out));
+        assert!(o.status.success(), "phyllo-gen render: {e}");
+        out
+    };
+    let (seedling, grown) = (frame("20"), frame("50"));
+    let model = phyllo_e2e::repo_root().join("models/phyllo.onnx");
+    let count = |extra: &[&str]| {
+        let (out, stdout, stderr) = run(phyllo()
+            .args(["count", "--json", "--threads", "1", "--model"])
+            .arg(&model)
+            .args(extra)
+            .arg(&seedling)
+            .arg(&grown));
+        assert!(out.status.success(), "{stderr}");
+        json_lines(&stdout)
+    };
+    let zoomed = count(&[]);
+    let seed_scale = zoomed[0]["scale"].as_f64().unwrap();
+    assert!(seed_scale > 1.5 && seed_scale <= 2.0 + 1e-6, "{}", zoomed[0]);
+    assert!(zoomed[0]["tiles"].as_u64().unwrap() >= 2, "two passes: {}", zoomed[0]);
+    assert!(zoomed[0]["leaf_count"].as_u64().unwrap() >= 3, "{}", zoomed[0]);
+    assert_eq!(zoomed[1]["scale"].as_f64().unwrap(), 1.0, "{}", zoomed[1]);
+    // Instances map back to the original frame whatever the enlargement.
+    for inst in zoomed[0]["instances"].as_array().unwrap() {
+        let b = inst["bbox"].as_array().unwrap();
+        assert!(b[2].as_u64().unwrap() <= 614 && b[3].as_u64().unwrap() <= 514, "{inst}");
+    }
+    let off = count(&["--zoom-height", "0"]);
+    assert_eq!(off[0]["scale"].as_f64().unwrap(), 1.0, "{}", off[0]);
+    assert_eq!(off[0]["tiles"].as_u64().unwrap(), 1, "{}", off[0]);
+}

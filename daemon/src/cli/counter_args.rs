@@ -41,6 +41,10 @@ pub struct CounterArgs {
     /// Post-processing: minimum centre heatmap value (default: the contract's).
     #[arg(long, value_name = "VALUE")]
     pub center_threshold: Option<f32>,
+    /// Post-processing: side of the max-pool window that keeps one centre
+    /// per neighbourhood, in output pixels, odd (default: the contract's).
+    #[arg(long, value_name = "PIXELS", value_parser = parse_nms_kernel)]
+    pub nms_kernel: Option<u32>,
 }
 
 impl CounterArgs {
@@ -51,6 +55,7 @@ impl CounterArgs {
             attach_radius: self.attach_radius,
             min_leaf_area: self.min_leaf_area.unwrap_or(defaults.min_leaf_area),
             center_threshold: self.center_threshold.unwrap_or(defaults.center_threshold),
+            nms_kernel: self.nms_kernel.unwrap_or(defaults.nms_kernel),
             ..defaults
         };
         Ok(CounterConfig {
@@ -64,6 +69,15 @@ impl CounterArgs {
             ..CounterConfig::default()
         })
     }
+}
+
+/// Parses an `--nms-kernel` side: odd, 1..=31.
+fn parse_nms_kernel(s: &str) -> Result<u32, String> {
+    let v: u32 = s.parse().map_err(|_| format!("{s:?} is not a whole number"))?;
+    if v.is_multiple_of(2) || !(1..=31).contains(&v) {
+        return Err(format!("{v} must be odd and within 1..=31"));
+    }
+    Ok(v)
 }
 
 /// Parses a `--scale` factor: finite and within 0.01..=8.
