@@ -277,13 +277,20 @@ fn seedlings_are_counted_again_enlarged_and_grown_plants_are_not() {
     let zoomed = count(&[]);
     let seed_scale = zoomed[0]["scale"].as_f64().unwrap();
     assert!(seed_scale > 1.5 && seed_scale <= 2.0 + 1e-6, "{}", zoomed[0]);
-    assert!(zoomed[0]["tiles"].as_u64().unwrap() >= 2, "two passes: {}", zoomed[0]);
+    assert!(
+        zoomed[0]["tiles"].as_u64().unwrap() >= 2,
+        "two passes: {}",
+        zoomed[0]
+    );
     assert!(zoomed[0]["leaf_count"].as_u64().unwrap() >= 3, "{}", zoomed[0]);
     assert_eq!(zoomed[1]["scale"].as_f64().unwrap(), 1.0, "{}", zoomed[1]);
     // Instances map back to the original frame whatever the enlargement.
     for inst in zoomed[0]["instances"].as_array().unwrap() {
         let b = inst["bbox"].as_array().unwrap();
-        assert!(b[2].as_u64().unwrap() <= 614 && b[3].as_u64().unwrap() <= 514, "{inst}");
+        assert!(
+            b[2].as_u64().unwrap() <= 614 && b[3].as_u64().unwrap() <= 514,
+            "{inst}"
+        );
     }
     let off = count(&["--zoom-height", "0"]);
     assert_eq!(off[0]["scale"].as_f64().unwrap(), 1.0, "{}", off[0]);
