@@ -49,6 +49,7 @@ impl LeafCounter for phyllo_inference::Counter {
                     "tiles": r.tiles,
                     "image_size": r.image_size,
                     "region": r.region,
+                    "scale": r.scale,
                 }),
                 ms_total: r.ms.total,
                 model_id: self.model_id(),

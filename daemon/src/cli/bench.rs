@@ -162,6 +162,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 .filter(|(a, b)| u64::from(**a) == **b)
                 .count();
             println!("same leaf count as Python  {same}/{}", ours.len());
+            for ((f, a), b) in frames.iter().zip(&ours).zip(&theirs) {
+                if u64::from(*a) != *b {
+                    println!("  {}: phyllo {a}, Python {b}", f.display());
+                }
+            }
         }
     }
     Ok(ExitCode::SUCCESS)

@@ -26,8 +26,9 @@ pub struct CounterArgs {
     /// (e.g. 0.5 for crops cut from 1227x1028 half-size frames).
     #[arg(long, value_name = "FACTOR", value_parser = parse_scale)]
     pub scale: Option<f32>,
-    /// Enlarge plants whose box is shorter than this many model pixels to
-    /// that height (0: never; default: the contract's).
+    /// Count a plant again, enlarged, when its leaves span fewer than this
+    /// many model pixels, so that they span it (0: never; default: the
+    /// contract's).
     #[arg(long, value_name = "PIXELS")]
     pub zoom_height: Option<u32>,
     /// Post-processing: instances apart from the plant's body by more than

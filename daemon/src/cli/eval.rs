@@ -140,7 +140,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         (miou, panoptic_quality(&matches))
     });
     if let Some(dir) = &args.plots {
-        plots::write(&pairs, &metrics, &title, dir)?;
+        // A plot's caption has room for the folder's name, not its path.
+        let short = match &args.dataset {
+            Some(d) => title.replacen(
+                &d.display().to_string(),
+                &d.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default(),
+                1,
+            ),
+            None => title.clone(),
+        };
+        plots::write(&pairs, &metrics, &short, dir)?;
     }
     if args.json {
         let conf: Vec<_> = confusion(&pairs)
