@@ -144,7 +144,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         let short = match &args.dataset {
             Some(d) => title.replacen(
                 &d.display().to_string(),
-                &d.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default(),
+                &d.file_name()
+                    .map(|f| f.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
                 1,
             ),
             None => title.clone(),
