@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use crate::attachment::keep_attached;
 use crate::decode::{decode_rgb, DecodeLimits};
 use crate::error::InferenceError;
+use crate::flip;
 use crate::model::{Model, ModelInfo, ModelOptions};
 use crate::postprocess::{panoptic, Panoptic, PostprocessParams};
 use crate::region::RegionMode;
@@ -50,6 +51,9 @@ pub struct CounterConfig {
     /// Plant height small plants are enlarged to, in model pixels (0: never
     /// enlarge); `None` takes the contract's `zoom_plant_height`.
     pub zoom_plant_height: Option<u32>,
+    /// Also run every tile mirrored and average the two (twice the model
+    /// time).
+    pub flip: bool,
     /// Post-processing parameters.
     pub postprocess: PostprocessParams,
     /// Decoder limits.
@@ -67,6 +71,7 @@ impl Default for CounterConfig {
             region: RegionMode::Auto,
             scale: None,
             zoom_plant_height: None,
+            flip: false,
             postprocess: PostprocessParams::default(),
             limits: DecodeLimits::default(),
         }
@@ -223,7 +228,11 @@ impl Counter {
         let mut outputs: Option<TileOutputs> = None;
         for chunk in canvas.tiles.chunks(self.config.batch_size.max(1)) {
             let batch = batch_tensor(c, &canvas.image, chunk);
-            let out = self.model.run(batch.view())?;
+            let mut out = self.model.run(batch.view())?;
+            if self.config.flip {
+                let mirror = self.model.run(flip::mirrored(&batch).view())?;
+                flip::average_with_mirror(&mut out, &mirror);
+            }
             match outputs.as_mut() {
                 None => outputs = Some(out),
                 Some(o) => o.append(out),

@@ -15,6 +15,7 @@ pub mod attachment;
 pub mod counter;
 pub mod decode;
 pub mod error;
+pub mod flip;
 pub mod model;
 pub mod overlay;
 pub mod postprocess;

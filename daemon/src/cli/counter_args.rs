@@ -31,6 +31,9 @@ pub struct CounterArgs {
     /// contract's).
     #[arg(long, value_name = "PIXELS")]
     pub zoom_height: Option<u32>,
+    /// Also run every tile mirrored left to right and average the two.
+    #[arg(long)]
+    pub flip: bool,
     /// Post-processing: instances apart from the plant's body by more than
     /// this many model output pixels are dropped (0: keep every instance).
     #[arg(long, value_name = "PIXELS", default_value_t = DEFAULT_ATTACH_RADIUS)]
@@ -66,6 +69,7 @@ impl CounterArgs {
             region: parse_region(&self.region)?,
             scale: self.scale,
             zoom_plant_height: self.zoom_height,
+            flip: self.flip,
             postprocess,
             ..CounterConfig::default()
         })
