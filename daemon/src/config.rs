@@ -128,6 +128,13 @@ pub struct InferenceConfig {
     /// Undecodable images and unmatched names are never retried for the same
     /// content.
     pub max_attempts: u32,
+    /// Count small plants again, enlarged, when their leaves span fewer model
+    /// rows than this (0: never); unset means the contract's
+    /// `zoom_plant_height`.
+    pub zoom_plant_height: Option<u32>,
+    /// Also run every tile mirrored and average the two (twice the model
+    /// time; not measurably more accurate on the shipped model).
+    pub flip: bool,
 }
 
 impl Default for InferenceConfig {
@@ -140,6 +147,8 @@ impl Default for InferenceConfig {
             batch_size: 4,
             queue_capacity: 64,
             max_attempts: 3,
+            zoom_plant_height: None,
+            flip: false,
         }
     }
 }
@@ -325,6 +334,8 @@ mod tests {
             "batch_size",
             "queue_capacity",
             "max_attempts",
+            "zoom_plant_height",
+            "flip",
             "[timeline]",
             "fusion",
             "session_gap_minutes",

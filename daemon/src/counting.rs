@@ -32,6 +32,8 @@ pub fn onnx_counter(cfg: &crate::config::InferenceConfig) -> anyhow::Result<std:
         ort_lib: cfg.ort_lib.clone(),
         intra_threads: cfg.intra_threads,
         batch_size: cfg.batch_size,
+        zoom_plant_height: cfg.zoom_plant_height,
+        flip: cfg.flip,
         ..phyllo_inference::CounterConfig::default()
     })?;
     Ok(std::sync::Arc::new(counter))
