@@ -67,18 +67,19 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut pairs = Vec::new();
     let mut matches: Vec<LeafMatch> = Vec::new();
     let mut failed = Vec::new();
-    let title;
+    // The title names the source in full; a plot's caption has room for the
+    // folder's name only.
+    let (title, caption);
     if let Some(dir) = &args.dataset {
         let split = (args.split != "all").then_some(args.split.as_str());
         // Until 2026-11-24 the default was the post-processing's minimum leaf
         // area (96 px), which tied the truth to a tuned parameter and gave
         // seedlings with five visible leaves a truth of 0.
         let min_pixels = args.truth_min_pixels.max(1);
-        title = format!(
-            "{} ({}; truth: leaves of at least {min_pixels} px)",
-            dir.display(),
-            args.split
-        );
+        let detail = format!("({}; truth: leaves of at least {min_pixels} px)", args.split);
+        title = format!("{} {detail}", dir.display());
+        let folder = dir.file_name().map(|f| f.to_string_lossy().into_owned());
+        caption = format!("{} {detail}", folder.unwrap_or_else(|| dir.display().to_string()));
         for item in sources::read_manifest(dir, split)? {
             let outcome = (|| -> anyhow::Result<(CountPair, LeafMatch)> {
                 let bytes = std::fs::read(&item.image)
@@ -118,6 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .file_name()
             .map(|f| f.to_string_lossy().into_owned())
             .unwrap_or_default();
+        caption = title.clone();
         for hc in sources::read_counts(csv, images)? {
             match counter.count_path(&hc.image) {
                 Ok(r) => pairs.push(CountPair {
@@ -140,18 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         (miou, panoptic_quality(&matches))
     });
     if let Some(dir) = &args.plots {
-        // A plot's caption has room for the folder's name, not its path.
-        let short = match &args.dataset {
-            Some(d) => title.replacen(
-                &d.display().to_string(),
-                &d.file_name()
-                    .map(|f| f.to_string_lossy().into_owned())
-                    .unwrap_or_default(),
-                1,
-            ),
-            None => title.clone(),
-        };
-        plots::write(&pairs, &metrics, &short, dir)?;
+        plots::write(&pairs, &metrics, &caption, dir)?;
     }
     if args.json {
         let conf: Vec<_> = confusion(&pairs)
