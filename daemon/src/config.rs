@@ -35,6 +35,9 @@ pub struct Config {
     /// Where `phyllo export` writes when no `--out` is given.
     #[serde(default)]
     pub export: ExportConfig,
+    /// How long `phyllo tail`'s feed keeps its entries.
+    #[serde(default)]
+    pub feed: FeedConfig,
 }
 
 /// `[watch]`: intake from the drop directory.
@@ -188,6 +191,30 @@ pub struct ExportConfig {
     pub dir: Option<PathBuf>,
 }
 
+/// `[feed]`: retention of the feed `phyllo tail` follows. The feed repeats
+/// what the images, observations and events tables keep for good, so old
+/// entries can go; without a limit it grows by one row per image for as long
+/// as the service runs.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FeedConfig {
+    /// Days a feed entry is kept (0 keeps every entry).
+    pub keep_days: f64,
+}
+
+impl Default for FeedConfig {
+    fn default() -> Self {
+        Self { keep_days: 30.0 }
+    }
+}
+
+impl FeedConfig {
+    /// The retention as a duration, `None` when entries are kept for good.
+    pub fn keep(&self) -> Option<std::time::Duration> {
+        (self.keep_days > 0.0).then(|| std::time::Duration::from_secs_f64(self.keep_days * 86_400.0))
+    }
+}
+
 impl Config {
     /// Reads and validates a configuration file. Relative paths in it are
     /// taken relative to the file's directory (a service's working directory
@@ -237,6 +264,9 @@ impl Config {
         if self.timeline.session_gap_minutes <= 0.0 {
             bail!("timeline.session_gap_minutes must be positive");
         }
+        if !(self.feed.keep_days >= 0.0 && self.feed.keep_days.is_finite()) {
+            bail!("feed.keep_days must be 0 (keep every entry) or a positive number of days");
+        }
         crate::timeline::FusionRule::parse(&self.timeline.fusion)?;
         crate::names::NamePatterns::from_config(&self.names)?;
         Ok(())
@@ -278,6 +308,7 @@ mod tests {
             "[timeline]\nfusion = \"biggest\"",
             "[timeline]\nliving_window = 2",
             "[inference]\nworkers = 0",
+            "[feed]\nkeep_days = -1",
             "[[names.patterns]]\nname = \"x\"\nregex = \"(?P<plant>.*)\"",
         ] {
             let text = format!("drop_dir = \"/d\"\ndatabase = \"/db\"\n{bad}\n");
@@ -342,6 +373,8 @@ mod tests {
             "living_window",
             "[export]",
             "dir",
+            "[feed]",
+            "keep_days",
         ];
         for k in keys {
             assert!(text.contains(k), "example config does not mention {k}");

@@ -29,6 +29,8 @@ use crate::worker::{spawn_workers, Stats, WorkerCtx};
 
 /// How often the service writes its self-report for `phyllo status`.
 const STATUS_EVERY: Duration = Duration::from_secs(2);
+/// How often feed entries older than `[feed] keep_days` are deleted.
+const PRUNE_FEED_EVERY: Duration = Duration::from_secs(3600);
 
 /// Runs the service until `shutdown` becomes true. Must be called inside a
 /// multi-threaded tokio runtime.
@@ -87,7 +89,12 @@ pub async fn run(
         config.inference.workers
     );
 
-    let status_task = tokio::spawn(report_status(status_store, stats.clone(), shutdown.clone()));
+    let status_task = tokio::spawn(report_status(
+        status_store,
+        stats.clone(),
+        config.feed.keep(),
+        shutdown.clone(),
+    ));
     let mut tick = tokio::time::interval(Duration::from_millis(config.watch.poll_ms.max(10)));
     tick.set_missed_tick_behavior(MissedTickBehavior::Delay);
     let rescan_every = Duration::from_secs(config.watch.rescan_secs.max(1));
@@ -234,16 +241,51 @@ fn spawn_scan(
     });
 }
 
+/// Deletes old feed entries on a blocking thread (the delete scans the feed
+/// and may wait for a worker's transaction). A failure is logged, not fatal:
+/// the feed only grows until the next try.
+async fn prune_feed(mut store: Store, keep: Duration) -> Store {
+    match tokio::task::spawn_blocking(move || {
+        match store.prune_feed(keep) {
+            Ok(0) => {}
+            Ok(n) => tracing::info!(
+                "feed: deleted {n} entries older than {:.1} days",
+                keep.as_secs_f64() / 86_400.0
+            ),
+            Err(e) => tracing::warn!("pruning the feed: {e:#}"),
+        }
+        store
+    })
+    .await
+    {
+        Ok(s) => s,
+        Err(e) => panic!("feed pruning panicked: {e}"),
+    }
+}
+
 /// Writes the self-report for `phyllo status`, the systemd status line and
-/// the watchdog ping, until shutdown. Returns the store for the final report.
-async fn report_status(mut store: Store, stats: Arc<Stats>, mut shutdown: watch::Receiver<bool>) -> Store {
+/// the watchdog ping, and prunes the feed to `keep_feed`, until shutdown.
+/// Returns the store for the final report.
+async fn report_status(
+    mut store: Store,
+    stats: Arc<Stats>,
+    keep_feed: Option<Duration>,
+    mut shutdown: watch::Receiver<bool>,
+) -> Store {
     let watchdog = systemd::watchdog_interval();
     let every = watchdog.map_or(STATUS_EVERY, |w| w.min(STATUS_EVERY));
     let mut tick = tokio::time::interval(every);
+    let mut prune = tokio::time::interval(PRUNE_FEED_EVERY);
+    prune.set_missed_tick_behavior(MissedTickBehavior::Delay);
     loop {
-        tokio::select! {
+        let pruning = tokio::select! {
             _ = shutdown.wait_for(|s| *s) => return store,
-            _ = tick.tick() => {}
+            _ = prune.tick(), if keep_feed.is_some() => true,
+            _ = tick.tick() => false,
+        };
+        if let (true, Some(keep)) = (pruning, keep_feed) {
+            store = prune_feed(store, keep).await;
+            continue;
         }
         let queued = stats.queued.load(Ordering::Relaxed);
         let busy = stats.busy.load(Ordering::Relaxed);

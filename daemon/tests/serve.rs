@@ -349,3 +349,54 @@ fn bounded_queue_and_sigterm_hand_back() {
     assert_eq!(query(&db, "SELECT COUNT(*) FROM images"), n as i64);
     assert_eq!(query(&db, "SELECT COUNT(DISTINCT path) FROM images"), n as i64);
 }
+
+/// `[feed] keep_days`: the running service deletes old feed entries (at start
+/// and hourly) and never the counts behind them.
+#[test]
+fn old_feed_entries_are_pruned_and_counts_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cfg = config(dir.path());
+    cfg.feed.keep_days = 1.0;
+    let drop = cfg.drop_dir.clone();
+    let db = cfg.database.clone();
+    std::fs::create_dir_all(&drop).unwrap();
+    std::fs::write(drop.join(name("P1", 1, 0)), body(8)).unwrap();
+    std::fs::write(drop.join(name("P1", 2, 0)), body(9)).unwrap();
+    let svc = start(cfg.clone());
+    wait_for("two counts", Duration::from_secs(20), || {
+        query(&db, "SELECT COUNT(*) FROM observations") == 2
+    });
+    svc.stop();
+    let entries = query(&db, "SELECT COUNT(*) FROM feed");
+    assert!(entries >= 2, "feed has {entries} entries");
+    // Written two days ago, as far as the feed knows.
+    let two_days_ago = (chrono::Utc::now() - chrono::Duration::days(2))
+        .format("%Y-%m-%dT%H:%M:%S%.3fZ")
+        .to_string();
+    Store::open(&db, &cfg.timeline, 3)
+        .unwrap()
+        .conn()
+        .execute("UPDATE feed SET at = ?1", [&two_days_ago])
+        .unwrap();
+
+    let svc = start(cfg.clone());
+    std::fs::write(drop.join(name("P1", 3, 0)), body(10)).unwrap();
+    wait_for(
+        "the third count, and the old feed gone",
+        Duration::from_secs(20),
+        || {
+            query(&db, "SELECT COUNT(*) FROM observations") == 3
+                && query(
+                    &db,
+                    &format!("SELECT COUNT(*) FROM feed WHERE at <= '{two_days_ago}'"),
+                ) == 0
+        },
+    );
+    svc.stop();
+    assert!(query(&db, "SELECT COUNT(*) FROM feed WHERE kind = 'count'") >= 1);
+    assert_eq!(
+        query(&db, "SELECT COUNT(*) FROM images WHERE state = 'counted'"),
+        3
+    );
+    assert_eq!(query(&db, "SELECT sessions FROM plants WHERE name = 'P1'"), 3);
+}

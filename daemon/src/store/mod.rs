@@ -409,6 +409,24 @@ impl Store {
         Ok(())
     }
 
+    /// Deletes feed entries written more than `keep` ago; returns how many.
+    /// Only the feed is pruned: it repeats what the other tables keep.
+    pub fn prune_feed(&mut self, keep: Duration) -> anyhow::Result<usize> {
+        let keep = chrono::Duration::from_std(keep).context("feed retention out of range")?;
+        let cutoff = (chrono::Utc::now() - keep)
+            .format("%Y-%m-%dT%H:%M:%S%.3fZ")
+            .to_string();
+        self.prune_feed_before(&cutoff)
+    }
+
+    /// Deletes feed entries whose `at` (UTC, as [`now_utc`] writes it) sorts
+    /// before `cutoff`.
+    fn prune_feed_before(&mut self, cutoff: &str) -> anyhow::Result<usize> {
+        Ok(self
+            .conn
+            .execute("DELETE FROM feed WHERE at < ?1", params![cutoff])?)
+    }
+
     /// Recomputes every plant's timeline (e.g. after the fusion rule changed).
     pub fn recompute_all(&mut self) -> anyhow::Result<usize> {
         let now = now_utc();

@@ -105,6 +105,39 @@ fn counted_image_lands_with_timeline_and_feed() {
 }
 
 #[test]
+fn pruning_the_feed_keeps_recent_entries_and_every_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    for (i, c) in ["a", "b", "c"].iter().enumerate() {
+        let f = facts(&format!("P1_{c}.png"), c);
+        s.record(
+            &f,
+            Outcome::Counted(&name("P1", day(i as i64), View::Side(0)), &count(8 + i as u32)),
+        )
+        .unwrap();
+    }
+    // Age the first two entries as if they were written in 2020.
+    s.conn()
+        .execute(
+            "UPDATE feed SET at = '2020-01-01T00:00:00.000Z' WHERE seq IN (SELECT seq FROM feed ORDER BY seq LIMIT 2)",
+            [],
+        )
+        .unwrap();
+    let before = s.feed_after(0, None, 100).unwrap();
+    assert_eq!(s.prune_feed(std::time::Duration::from_secs(86_400)).unwrap(), 2);
+    let after = s.feed_after(0, None, 100).unwrap();
+    assert_eq!(after.len(), before.len() - 2);
+    assert_eq!(after[0].seq, before[2].seq, "the newest entries stay, in order");
+    // `phyllo tail` resumes from its last position past the gap.
+    assert_eq!(s.feed_after(before[0].seq, None, 100).unwrap().len(), after.len());
+    assert_eq!(s.feed_head().unwrap(), before.last().unwrap().seq);
+    // Counts and the timeline are untouched.
+    assert_eq!(n_obs(&s), 3);
+    assert_eq!(s.plant_timeline("P1").unwrap().unwrap().sessions.len(), 3);
+    assert_eq!(s.prune_feed(std::time::Duration::from_secs(86_400)).unwrap(), 0);
+}
+
+#[test]
 fn same_content_is_never_counted_twice() {
     let dir = tempfile::tempdir().unwrap();
     let mut s = open(&dir);
