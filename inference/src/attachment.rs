@@ -11,7 +11,10 @@
 //! (a leaf cut off by a thin missed stretch), and drops instances that lie
 //! mostly outside the kept bodies.
 
-use image::RgbImage;
+use image::{GrayImage, Luma, RgbImage};
+use imageproc::distance_transform::Norm;
+use imageproc::morphology;
+use imageproc::region_labelling::{connected_components, Connectivity};
 use phyllo_contract::Contract;
 
 use crate::postprocess::Panoptic;
@@ -34,8 +37,14 @@ pub fn keep_attached(pan: &mut Panoptic, canvas: &RgbImage, contract: &Contract,
     }
     let (w, h) = (pan.width, pan.height);
     let plant: Vec<bool> = pan.semantic.iter().map(|&c| c != 0).collect();
-    let bridged = dilate(&plant, w, h, radius as usize);
-    let (body, bodies) = label_components(&bridged, w, h);
+    let mask = GrayImage::from_fn(w as u32, h as u32, |x, y| {
+        Luma([if plant[y as usize * w + x as usize] {
+            255
+        } else {
+            0
+        }])
+    });
+    let (body, bodies) = label_components(&dilate(&mask, radius));
     if bodies == 0 {
         return;
     }
@@ -87,78 +96,19 @@ pub fn keep_attached(pan: &mut Panoptic, canvas: &RgbImage, contract: &Contract,
     });
 }
 
-/// Square dilation of `mask` by `r` pixels (separable: rows, then columns).
-fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
-    let mut rows = vec![false; w * h];
-    for y in 0..h {
-        // Distance to the last set pixel on the left, swept both ways.
-        let row = &mask[y * w..(y + 1) * w];
-        let mut last: Option<usize> = None;
-        for x in 0..w {
-            if row[x] {
-                last = Some(x);
-            }
-            rows[y * w + x] = last.is_some_and(|l| x - l <= r);
-        }
-        last = None;
-        for x in (0..w).rev() {
-            if row[x] {
-                last = Some(x);
-            }
-            rows[y * w + x] |= last.is_some_and(|l| l - x <= r);
-        }
-    }
-    let mut out = vec![false; w * h];
-    for x in 0..w {
-        let mut last: Option<usize> = None;
-        for y in 0..h {
-            if rows[y * w + x] {
-                last = Some(y);
-            }
-            out[y * w + x] = last.is_some_and(|l| y - l <= r);
-        }
-        last = None;
-        for y in (0..h).rev() {
-            if rows[y * w + x] {
-                last = Some(y);
-            }
-            out[y * w + x] |= last.is_some_and(|l| l - y <= r);
-        }
-    }
-    out
+/// Square dilation of `mask` by `r` pixels (`L∞` distance at most `r`).
+fn dilate(mask: &GrayImage, r: u32) -> GrayImage {
+    // imageproc takes the radius as a u8; past 255 output pixels every
+    // realistic plant is one body anyway.
+    morphology::dilate(mask, Norm::LInf, r.min(255) as u8)
 }
 
 /// 8-connected components of `mask`: a label per pixel (0 outside the mask,
 /// bodies from 1) and the number of bodies.
-fn label_components(mask: &[bool], w: usize, h: usize) -> (Vec<u32>, usize) {
-    let mut label = vec![0u32; w * h];
-    let mut next = 0u32;
-    let mut stack = Vec::new();
-    for start in 0..w * h {
-        if !mask[start] || label[start] != 0 {
-            continue;
-        }
-        next += 1;
-        label[start] = next;
-        stack.push(start);
-        while let Some(i) = stack.pop() {
-            let (x, y) = ((i % w) as i64, (i / w) as i64);
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let (nx, ny) = (x + dx, y + dy);
-                    if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
-                        continue;
-                    }
-                    let j = ny as usize * w + nx as usize;
-                    if mask[j] && label[j] == 0 {
-                        label[j] = next;
-                        stack.push(j);
-                    }
-                }
-            }
-        }
-    }
-    (label, next as usize)
+fn label_components(mask: &GrayImage) -> (Vec<u32>, usize) {
+    let labels = connected_components(mask, Connectivity::Eight, Luma([0u8]));
+    let bodies = labels.pixels().map(|p| p.0[0]).max().unwrap_or(0) as usize;
+    (labels.into_raw(), bodies)
 }
 
 #[cfg(test)]
@@ -241,11 +191,10 @@ mod tests {
 
     #[test]
     fn dilation_and_components() {
-        let (w, h) = (7, 1);
-        let mask = [true, false, false, false, false, false, true];
-        let d = dilate(&mask, w, h, 2);
-        assert_eq!(d, vec![true, true, true, false, true, true, true]);
-        let (label, n) = label_components(&d, w, h);
+        let mask = GrayImage::from_raw(7, 1, vec![255, 0, 0, 0, 0, 0, 255]).unwrap();
+        let d = dilate(&mask, 2);
+        assert_eq!(d.as_raw(), &vec![255, 255, 255, 0, 255, 255, 255]);
+        let (label, n) = label_components(&d);
         assert_eq!(n, 2);
         assert_eq!(label, vec![1, 1, 1, 0, 2, 2, 2]);
     }
