@@ -278,12 +278,12 @@ async fn report_status(
     let mut prune = tokio::time::interval(PRUNE_FEED_EVERY);
     prune.set_missed_tick_behavior(MissedTickBehavior::Delay);
     loop {
-        let pruning = tokio::select! {
+        let prune_now = tokio::select! {
             _ = shutdown.wait_for(|s| *s) => return store,
-            _ = prune.tick(), if keep_feed.is_some() => true,
-            _ = tick.tick() => false,
+            _ = prune.tick(), if keep_feed.is_some() => keep_feed,
+            _ = tick.tick() => None,
         };
-        if let (true, Some(keep)) = (pruning, keep_feed) {
+        if let Some(keep) = prune_now {
             store = prune_feed(store, keep).await;
             continue;
         }

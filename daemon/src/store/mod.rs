@@ -416,12 +416,7 @@ impl Store {
         let cutoff = (chrono::Utc::now() - keep)
             .format("%Y-%m-%dT%H:%M:%S%.3fZ")
             .to_string();
-        self.prune_feed_before(&cutoff)
-    }
-
-    /// Deletes feed entries whose `at` (UTC, as [`now_utc`] writes it) sorts
-    /// before `cutoff`.
-    fn prune_feed_before(&mut self, cutoff: &str) -> anyhow::Result<usize> {
+        // `at` is written by `now_utc` in this format, so text order is time order.
         Ok(self
             .conn
             .execute("DELETE FROM feed WHERE at < ?1", params![cutoff])?)
