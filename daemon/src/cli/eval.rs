@@ -10,8 +10,9 @@ use phyllo_inference::Counter;
 use serde_json::json;
 
 use super::counter_args::CounterArgs;
+use crate::evaluation::leaf_errors::LeafErrors;
 use crate::evaluation::metrics::{confusion, confusion_table, per_view, CountMetrics, CountPair};
-use crate::evaluation::segmentation::{match_leaves, panoptic_quality, LeafMatch, PixelMap};
+use crate::evaluation::segmentation::{panoptic_quality, LeafMatch, Overlaps, PixelMap};
 use crate::evaluation::{plots, sources};
 
 /// Arguments of `phyllo eval`.
@@ -66,6 +67,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     let mut pairs = Vec::new();
     let mut matches: Vec<LeafMatch> = Vec::new();
+    let mut leaf_errors = LeafErrors::default();
     let mut failed = Vec::new();
     // The title names the source in full; a plot's caption has room for the
     // folder's name only.
@@ -81,7 +83,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         let folder = dir.file_name().map(|f| f.to_string_lossy().into_owned());
         caption = format!("{} {detail}", folder.unwrap_or_else(|| dir.display().to_string()));
         for item in sources::read_manifest(dir, split)? {
-            let outcome = (|| -> anyhow::Result<(CountPair, LeafMatch)> {
+            let outcome = (|| -> anyhow::Result<(CountPair, LeafMatch, Overlaps)> {
                 let bytes = std::fs::read(&item.image)
                     .with_context(|| format!("cannot read {}", item.image.display()))?;
                 let analysis = counter.analyse_bytes(&item.image, &bytes)?;
@@ -104,12 +106,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                     truth: truth.countable_leaves(min_pixels),
                     predicted: analysis.result.leaf_count,
                 };
-                Ok((pair, match_leaves(&truth, &pred)))
+                let overlaps = Overlaps::of(&truth, &pred);
+                Ok((pair, LeafMatch::of(&overlaps), overlaps))
             })();
             match outcome {
-                Ok((p, m)) => {
+                Ok((p, m, o)) => {
                     pairs.push(p);
                     matches.push(m);
+                    leaf_errors.add(&o);
                 }
                 Err(e) => failed.push(format!("{e:#}")),
             }
@@ -160,6 +164,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         if let Some((miou, pq)) = seg {
             v["mean_iou"] = json!(miou);
             v["panoptic_quality"] = json!(pq);
+            v["leaf_errors"] = json!(leaf_errors);
         }
         if args.per_image {
             v["images"] = json!(pairs);
@@ -182,6 +187,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         print_row(&metrics);
         if let Some((miou, pq)) = seg {
             println!("\nmean leaf IoU per image (stem lenient) {miou:.3}\nleaf panoptic quality {pq:.3}");
+            println!(
+                "\nleaf errors (true leaves by visible area; every visible leaf, whatever the truth rule):\n{}",
+                leaf_errors.table()
+            );
         }
         println!("\nper view:");
         println!("| view | images | exact | within ±1 | RMSE | MAE | bias | R² |");

@@ -1,6 +1,8 @@
 //! Segmentation quality against exact labels: per-image mean leaf IoU with the
 //! paper's lenient stem rule, and panoptic quality (PQ) of leaves.
 
+use std::collections::{BTreeMap, BTreeSet};
+
 use phyllo_contract::{Contract, LEAF, STEM};
 use phyllo_inference::counter::Analysis;
 use serde::Serialize;
@@ -71,7 +73,7 @@ impl PixelMap {
 
     /// Number of leaf instances with at least `min_pixels` pixels.
     pub fn countable_leaves(&self, min_pixels: usize) -> u32 {
-        let mut area = std::collections::BTreeMap::<u32, usize>::new();
+        let mut area = BTreeMap::<u32, usize>::new();
         for (c, i) in self.class.iter().zip(&self.instance) {
             if *c == LEAF && *i > 0 {
                 *area.entry(*i).or_default() += 1;
@@ -96,66 +98,100 @@ pub struct LeafMatch {
     pub fn_: usize,
 }
 
-/// Matches true and predicted leaves of one image.
-///
-/// IoU follows the paper's lenient rule: a pixel that is stem in the truth
-/// but belongs to the predicted leaf counts as agreement (leaf sheaths and
-/// the stem are hard to tell apart, even for annotators), so it is dropped
-/// from the union instead of counting against the prediction.
-pub fn match_leaves(truth: &PixelMap, pred: &PixelMap) -> LeafMatch {
-    use std::collections::BTreeMap;
-    let mut t_area: BTreeMap<u32, f64> = BTreeMap::new();
-    let mut p_area: BTreeMap<u32, f64> = BTreeMap::new();
-    let mut p_on_stem: BTreeMap<u32, f64> = BTreeMap::new();
-    let mut inter: BTreeMap<(u32, u32), f64> = BTreeMap::new();
-    for i in 0..truth.class.len() {
-        let t = (truth.class[i] == LEAF && truth.instance[i] > 0).then_some(truth.instance[i]);
-        let p = (pred.class[i] == LEAF && pred.instance[i] > 0).then_some(pred.instance[i]);
-        if let Some(t) = t {
-            *t_area.entry(t).or_default() += 1.0;
-        }
-        if let Some(p) = p {
-            *p_area.entry(p).or_default() += 1.0;
-            if truth.class[i] == STEM {
-                *p_on_stem.entry(p).or_default() += 1.0;
+/// Pixel overlaps between the true and the predicted leaves of one image.
+#[derive(Debug, Default)]
+pub struct Overlaps {
+    /// Pixels of each true leaf.
+    pub truth_area: BTreeMap<u32, f64>,
+    /// Pixels of each predicted leaf.
+    pub pred_area: BTreeMap<u32, f64>,
+    /// Pixels of each predicted leaf that are stem in the truth.
+    pub pred_on_stem: BTreeMap<u32, f64>,
+    /// Pixels shared by a true leaf and a predicted leaf, keyed `(true, predicted)`.
+    pub shared: BTreeMap<(u32, u32), f64>,
+}
+
+impl Overlaps {
+    /// Counts the overlaps of two maps of the same size.
+    pub fn of(truth: &PixelMap, pred: &PixelMap) -> Self {
+        let mut o = Self::default();
+        for i in 0..truth.class.len() {
+            let t = (truth.class[i] == LEAF && truth.instance[i] > 0).then_some(truth.instance[i]);
+            let p = (pred.class[i] == LEAF && pred.instance[i] > 0).then_some(pred.instance[i]);
+            if let Some(t) = t {
+                *o.truth_area.entry(t).or_default() += 1.0;
+            }
+            if let Some(p) = p {
+                *o.pred_area.entry(p).or_default() += 1.0;
+                if truth.class[i] == STEM {
+                    *o.pred_on_stem.entry(p).or_default() += 1.0;
+                }
+            }
+            if let (Some(t), Some(p)) = (t, p) {
+                *o.shared.entry((t, p)).or_default() += 1.0;
             }
         }
-        if let (Some(t), Some(p)) = (t, p) {
-            *inter.entry((t, p)).or_default() += 1.0;
-        }
+        o
     }
-    let mut candidates: Vec<(f64, u32, u32)> = inter
-        .iter()
-        .map(|(&(t, p), &n)| {
-            let union = t_area[&t] + p_area[&p] - n - p_on_stem.get(&p).copied().unwrap_or(0.0);
-            (n / union.max(1.0), t, p)
-        })
-        .collect();
-    candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let mut t_used = std::collections::BTreeSet::new();
-    let mut p_used = std::collections::BTreeSet::new();
-    let mut m = LeafMatch::default();
-    let mut iou_sum = 0.0;
-    for (iou, t, p) in candidates {
-        if t_used.contains(&t) || p_used.contains(&p) {
-            continue;
-        }
-        t_used.insert(t);
-        p_used.insert(p);
-        iou_sum += iou;
-        if iou > 0.5 {
-            m.tp += 1;
-            m.tp_iou_sum += iou;
-        }
+
+    /// One-to-one pairs `(iou, true, predicted)`, greedily by decreasing IoU.
+    ///
+    /// IoU follows the paper's lenient rule: a pixel that is stem in the truth
+    /// but belongs to the predicted leaf counts as agreement (leaf sheaths and
+    /// the stem are hard to tell apart, even for annotators), so it is dropped
+    /// from the union instead of counting against the prediction.
+    pub fn pairs(&self) -> Vec<(f64, u32, u32)> {
+        let mut candidates: Vec<(f64, u32, u32)> = self
+            .shared
+            .iter()
+            .map(|(&(t, p), &n)| {
+                let on_stem = self.pred_on_stem.get(&p).copied().unwrap_or(0.0);
+                let union = self.truth_area[&t] + self.pred_area[&p] - n - on_stem;
+                (n / union.max(1.0), t, p)
+            })
+            .collect();
+        candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let mut t_used = BTreeSet::new();
+        let mut p_used = BTreeSet::new();
+        candidates.retain(|&(_, t, p)| {
+            let free = !t_used.contains(&t) && !p_used.contains(&p);
+            if free {
+                t_used.insert(t);
+                p_used.insert(p);
+            }
+            free
+        });
+        candidates
     }
-    m.mean_iou = if t_area.is_empty() {
-        1.0
-    } else {
-        iou_sum / t_area.len() as f64
-    };
-    m.fp = p_area.len() - m.tp;
-    m.fn_ = t_area.len() - m.tp;
-    m
+}
+
+/// Matches true and predicted leaves of one image (see [`Overlaps::pairs`]
+/// for the IoU rule); a pair with IoU above 0.5 is a true positive.
+pub fn match_leaves(truth: &PixelMap, pred: &PixelMap) -> LeafMatch {
+    LeafMatch::of(&Overlaps::of(truth, pred))
+}
+
+impl LeafMatch {
+    /// Scores one image's overlaps.
+    pub fn of(o: &Overlaps) -> Self {
+        let mut m = LeafMatch::default();
+        let mut iou_sum = 0.0;
+        for (iou, _, _) in o.pairs() {
+            iou_sum += iou;
+            if iou > 0.5 {
+                m.tp += 1;
+                m.tp_iou_sum += iou;
+            }
+        }
+        m.mean_iou = if o.truth_area.is_empty() {
+            1.0
+        } else {
+            iou_sum / o.truth_area.len() as f64
+        };
+        m.fp = o.pred_area.len() - m.tp;
+        m.fn_ = o.truth_area.len() - m.tp;
+        m
+    }
 }
 
 /// Dataset-wide panoptic quality of leaves: Σ IoU(TP) / (TP + FP/2 + FN/2).
