@@ -4,6 +4,8 @@
 # the truth and a two-sided sign test on those. Differences with p well above
 # 0.05 are noise.
 # Usage: scripts/compare-models.sh DATASET MODEL_A MODEL_B [extra phyllo eval args...]
+# ARGS_A and ARGS_B add arguments for one side only, to compare settings of
+# one model: ARGS_B="--zoom-height 480" compare-models.sh D M M
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 usage="usage: compare-models.sh DATASET MODEL_A MODEL_B [phyllo eval args...]"
@@ -15,8 +17,9 @@ bin=$root/target/release/phyllo
 cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-"$bin" eval --threads "${THREADS:-2}" --model "$a" --dataset "$data" --per-image "$@" 2>/dev/null >"$tmp/a"
-"$bin" eval --threads "${THREADS:-2}" --model "$b" --dataset "$data" --per-image "$@" 2>/dev/null >"$tmp/b"
+# shellcheck disable=SC2086 # ARGS_A and ARGS_B are word lists
+"$bin" eval --threads "${THREADS:-2}" --model "$a" --dataset "$data" --per-image "$@" ${ARGS_A:-} 2>/dev/null >"$tmp/a"
+"$bin" eval --threads "${THREADS:-2}" --model "$b" --dataset "$data" --per-image "$@" ${ARGS_B:-} 2>/dev/null >"$tmp/b"
 python3 - "$tmp/a" "$tmp/b" <<'PY'
 import math, re, sys
 
@@ -31,6 +34,8 @@ def load(path):
     return name, rows
 
 (na, a), (nb, b) = load(sys.argv[1]), load(sys.argv[2])
+if na == nb:
+    na, nb = f"{na} (A)", f"{nb} (B)"
 print("| model | images | exact | within ±1 | RMSE | bias |")
 print("|---|---:|---:|---:|---:|---:|")
 for name, rows in ((na, a), (nb, b)):

@@ -47,6 +47,20 @@ fn evaluates_a_generated_dataset_against_its_labels() {
         let visible = row["leaf_pixels"].as_object().unwrap().len();
         assert_eq!(img["truth"].as_u64().unwrap() as usize, visible, "{file}");
     }
+    // Every true leaf of every image lands in exactly one leaf-error cell.
+    let truth_total: u64 = v["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["truth"].as_u64().unwrap())
+        .sum();
+    let classed: u64 = v["leaf_errors"]["true_leaves"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|r| ["found", "partly_found", "merged", "not_seen"].map(|k| r[k].as_u64().unwrap()))
+        .sum();
+    assert_eq!(classed, truth_total, "{}", v["leaf_errors"]);
     for p in ["scatter.png", "error_histogram.png"] {
         let img = image::open(plots.join(p)).unwrap();
         assert!(img.width() > 300, "{p}");

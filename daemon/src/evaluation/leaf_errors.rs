@@ -277,6 +277,19 @@ mod tests {
     }
 
     #[test]
+    fn every_leaf_lands_in_one_cell_on_both_sides() {
+        // Truth minus prediction is exactly missed minus extra leaves.
+        let truth = ["1111222233334444ss....", "11112222333344445s...."];
+        let pred = ["1111111122224455677.8.", "11111111222244556.7..."];
+        let e = errors(&truth, &pred);
+        let all: usize = e.true_leaves.iter().map(TrueLeaves::total).sum();
+        assert_eq!(all, 5);
+        let kept: usize = e.true_leaves.iter().map(|r| r.found + r.partly_found).sum();
+        assert_eq!(kept + e.extra_total(), 7);
+        assert_eq!(5 - 7, e.missed() as i64 - e.extra_total() as i64);
+    }
+
+    #[test]
     fn leaves_are_classed_by_visible_area() {
         let big = "1".repeat(300);
         let truth = [format!("{big}2")];
