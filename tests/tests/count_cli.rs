@@ -249,7 +249,8 @@ fn unreadable_and_wrong_contract_models_are_refused_with_the_reason() {
 
 /// The contract's zoom with the shipped model: a seedling (its leaves span
 /// far fewer than `zoom_plant_height` rows) is counted a second time,
-/// enlarged, and a grown plant is not; `--zoom-height 0` turns it off.
+/// enlarged to the cap, a grown plant less, and a plant that already spans
+/// the zoom height not at all; `--zoom-height 0` turns it off.
 #[test]
 fn seedlings_are_counted_again_enlarged_and_grown_plants_are_not() {
     let tmp = tempfile::tempdir().unwrap();
@@ -283,7 +284,11 @@ fn seedlings_are_counted_again_enlarged_and_grown_plants_are_not() {
         zoomed[0]
     );
     assert!(zoomed[0]["leaf_count"].as_u64().unwrap() >= 3, "{}", zoomed[0]);
-    assert_eq!(zoomed[1]["scale"].as_f64().unwrap(), 1.0, "{}", zoomed[1]);
+    let grown_scale = zoomed[1]["scale"].as_f64().unwrap();
+    assert!(grown_scale < seed_scale, "{}", zoomed[1]);
+    // The grown plant spans about 360 rows: past a 320-row zoom height.
+    let low = count(&["--zoom-height", "320"]);
+    assert_eq!(low[1]["scale"].as_f64().unwrap(), 1.0, "{}", low[1]);
     // Instances map back to the original frame whatever the enlargement.
     for inst in zoomed[0]["instances"].as_array().unwrap() {
         let b = inst["bbox"].as_array().unwrap();
