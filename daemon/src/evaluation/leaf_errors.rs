@@ -83,10 +83,10 @@ impl LeafErrors {
     /// Adds one image's leaves.
     pub fn add(&mut self, o: &Overlaps) {
         let matched: BTreeMap<u32, u32> = o
-            .pairs()
-            .into_iter()
+            .pairs
+            .iter()
             .filter(|(iou, _, _)| *iou > 0.5)
-            .map(|(_, t, p)| (t, p))
+            .map(|&(_, t, p)| (t, p))
             .collect();
         let found_by: BTreeMap<u32, u32> = matched.iter().map(|(t, p)| (*p, *t)).collect();
         // For each predicted leaf the true leaf it covers most, and for each

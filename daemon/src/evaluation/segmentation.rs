@@ -109,10 +109,18 @@ pub struct Overlaps {
     pub pred_on_stem: BTreeMap<u32, f64>,
     /// Pixels shared by a true leaf and a predicted leaf, keyed `(true, predicted)`.
     pub shared: BTreeMap<(u32, u32), f64>,
+    /// One-to-one pairs `(iou, true, predicted)`, chosen greedily by
+    /// decreasing IoU (see [`Overlaps::of`] for the IoU rule).
+    pub pairs: Vec<(f64, u32, u32)>,
 }
 
 impl Overlaps {
-    /// Counts the overlaps of two maps of the same size.
+    /// Counts the overlaps of two maps of the same size and pairs their leaves.
+    ///
+    /// IoU follows the paper's lenient rule: a pixel that is stem in the truth
+    /// but belongs to the predicted leaf counts as agreement (leaf sheaths and
+    /// the stem are hard to tell apart, even for annotators), so it is dropped
+    /// from the union instead of counting against the prediction.
     pub fn of(truth: &PixelMap, pred: &PixelMap) -> Self {
         let mut o = Self::default();
         for i in 0..truth.class.len() {
@@ -131,16 +139,11 @@ impl Overlaps {
                 *o.shared.entry((t, p)).or_default() += 1.0;
             }
         }
+        o.pairs = o.greedy_pairs();
         o
     }
 
-    /// One-to-one pairs `(iou, true, predicted)`, greedily by decreasing IoU.
-    ///
-    /// IoU follows the paper's lenient rule: a pixel that is stem in the truth
-    /// but belongs to the predicted leaf counts as agreement (leaf sheaths and
-    /// the stem are hard to tell apart, even for annotators), so it is dropped
-    /// from the union instead of counting against the prediction.
-    pub fn pairs(&self) -> Vec<(f64, u32, u32)> {
+    fn greedy_pairs(&self) -> Vec<(f64, u32, u32)> {
         let mut candidates: Vec<(f64, u32, u32)> = self
             .shared
             .iter()
@@ -165,18 +168,12 @@ impl Overlaps {
     }
 }
 
-/// Matches true and predicted leaves of one image (see [`Overlaps::pairs`]
-/// for the IoU rule); a pair with IoU above 0.5 is a true positive.
-pub fn match_leaves(truth: &PixelMap, pred: &PixelMap) -> LeafMatch {
-    LeafMatch::of(&Overlaps::of(truth, pred))
-}
-
 impl LeafMatch {
-    /// Scores one image's overlaps.
+    /// Scores one image's overlaps; a pair with IoU above 0.5 is a true positive.
     pub fn of(o: &Overlaps) -> Self {
         let mut m = LeafMatch::default();
         let mut iou_sum = 0.0;
-        for (iou, _, _) in o.pairs() {
+        for &(iou, _, _) in &o.pairs {
             iou_sum += iou;
             if iou > 0.5 {
                 m.tp += 1;
@@ -211,6 +208,10 @@ pub fn panoptic_quality(matches: &[LeafMatch]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn match_leaves(truth: &PixelMap, pred: &PixelMap) -> LeafMatch {
+        LeafMatch::of(&Overlaps::of(truth, pred))
+    }
 
     fn map(rows: &[&str]) -> PixelMap {
         // '.' background, 's' stem, digits = leaf instance.
