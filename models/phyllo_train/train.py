@@ -11,6 +11,7 @@ Re-running the same command resumes from ``last.pt``. Export with
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -145,6 +146,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--center-weight", type=float, default=200.0)
     ap.add_argument("--offset-weight", type=float, default=0.01)
     ap.add_argument("--top-k", type=float, default=0.2)
+    ap.add_argument("--center-sigma", type=float, default=None,
+                    help="centre heatmap Gaussian sigma in output px (default: the contract's); "
+                         "training only, the decoder never reads it")
     ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     ap.add_argument("--threads", type=int, default=2, help="torch intra-op threads (CPU)")
     ap.add_argument("--workers", type=int, default=1, help="data loader worker processes")
@@ -165,6 +169,10 @@ def main(argv: list[str] | None = None) -> int:
     """Train; returns a process exit code."""
     args = build_parser().parse_args(argv)
     contract = load_contract()
+    if args.center_sigma is not None:
+        if args.center_sigma <= 0:
+            raise SystemExit(f"--center-sigma must be positive, got {args.center_sigma}")
+        contract = dataclasses.replace(contract, center_sigma=args.center_sigma)
     seed_everything(args.seed)
     device = torch.device(args.device)
     if device.type == "cpu":
@@ -198,6 +206,8 @@ def main(argv: list[str] | None = None) -> int:
                              {"params": no_decay, "weight_decay": 0.0}], lr=args.lr)
     weights = LossWeights(1.0, args.center_weight, args.offset_weight, args.top_k)
     training_data = describe_data(args.data) + (f" | {args.data_note}" if args.data_note else "")
+    if args.center_sigma is not None:
+        training_data += f" | centre sigma {args.center_sigma:g} output px"
 
     step, best = 0, float("inf")
     last = args.out / "last.pt"

@@ -138,3 +138,57 @@ fn evaluates_real_images_with_human_counts() {
         .sum();
     assert_eq!(confusion_total, 10);
 }
+
+#[test]
+fn real_frames_with_marked_tips_get_a_tip_table() {
+    let dev = dev_data().expect("development data beside the repo");
+    let (out, stdout, stderr) = run(phyllo()
+        .args(["eval", "--json", "--per-image", "--counts"])
+        .arg(dev.join("leaf_tips.csv"))
+        .arg("--images")
+        .arg(dev.join("images")));
+    assert!(out.status.success(), "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+    let tips = &v["tip_errors"];
+    assert_eq!(tips["images"], 10, "{v}");
+    let n = |o: &Value, k: &str| o[k].as_i64().unwrap_or_else(|| panic!("{k} in {o}"));
+    let extra = |o: &Value| {
+        o["extra"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e.as_i64().unwrap())
+            .sum::<i64>()
+    };
+    // leaf_tips.csv's leaf_count is its number of marked tips.
+    let human: i64 = v["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| n(p, "truth"))
+        .sum();
+    let predicted: i64 = v["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| n(p, "predicted"))
+        .sum();
+    assert_eq!(n(&tips["total"], "tips"), human);
+    assert_eq!(n(&tips["total"], "predicted"), predicted);
+    // Each image's count error splits exactly into missed, merged and extra leaves.
+    for row in v["tip_outcomes"].as_array().unwrap() {
+        let t = &row["tips"];
+        assert_eq!(
+            n(t, "tips") - n(t, "predicted"),
+            n(t, "unreached") + n(t, "merged_away") - extra(t),
+            "{row}"
+        );
+        assert_eq!(
+            n(t, "tips"),
+            n(t, "own_leaf") + n(t, "sharing") + n(t, "unreached"),
+            "{row}"
+        );
+    }
+    // The shipped model reaches most tips with a leaf of their own.
+    assert!(n(&tips["total"], "own_leaf") * 2 > human, "{tips}");
+}

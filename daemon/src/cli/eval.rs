@@ -13,6 +13,7 @@ use super::counter_args::CounterArgs;
 use crate::evaluation::leaf_errors::LeafErrors;
 use crate::evaluation::metrics::{confusion, confusion_table, per_view, CountMetrics, CountPair};
 use crate::evaluation::segmentation::{panoptic_quality, LeafMatch, Overlaps, PixelMap};
+use crate::evaluation::tip_errors::{TipErrors, TipOutcome};
 use crate::evaluation::{plots, sources};
 
 /// Arguments of `phyllo eval`.
@@ -47,6 +48,10 @@ pub struct Args {
     /// Also print each image's true and predicted count.
     #[arg(long)]
     pub per_image: bool,
+    /// With a `tips_xy` column in the CSV: a marked tip belongs to the
+    /// predicted leaf with a pixel this near, in the image's pixels.
+    #[arg(long, value_name = "PIXELS", default_value_t = 24.0, requires = "counts")]
+    pub tip_radius: f32,
 }
 
 /// Runs the evaluation.
@@ -68,6 +73,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut pairs = Vec::new();
     let mut matches: Vec<LeafMatch> = Vec::new();
     let mut leaf_errors = LeafErrors::default();
+    let mut tip_errors = TipErrors::new(args.tip_radius);
+    let mut tip_outcomes: Vec<(String, TipOutcome)> = Vec::new();
     let mut failed = Vec::new();
     // The title names the source in full; a plot's caption has room for the
     // folder's name only.
@@ -125,14 +132,32 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .unwrap_or_default();
         caption = title.clone();
         for hc in sources::read_counts(csv, images)? {
-            match counter.count_path(&hc.image) {
-                Ok(r) => pairs.push(CountPair {
-                    file: hc.image.display().to_string(),
-                    view: hc.view,
-                    truth: hc.count,
-                    predicted: r.leaf_count,
-                }),
-                Err(e) => failed.push(e.to_string()),
+            let outcome = (|| -> anyhow::Result<(u32, Option<TipOutcome>)> {
+                let bytes = std::fs::read(&hc.image)
+                    .with_context(|| format!("cannot read {}", hc.image.display()))?;
+                let analysis = counter.analyse_bytes(&hc.image, &bytes)?;
+                let tips = hc.tips.as_ref().map(|tips| {
+                    let [w, h] = analysis.result.image_size;
+                    let pred = PixelMap::from_analysis(c, &analysis, w as usize, h as usize);
+                    TipOutcome::of(tips, &pred, args.tip_radius)
+                });
+                Ok((analysis.result.leaf_count, tips))
+            })();
+            match outcome {
+                Ok((predicted, tips)) => {
+                    let file = hc.image.display().to_string();
+                    if let Some(t) = tips {
+                        tip_errors.add(&t);
+                        tip_outcomes.push((file.clone(), t));
+                    }
+                    pairs.push(CountPair {
+                        file,
+                        view: hc.view,
+                        truth: hc.count,
+                        predicted,
+                    });
+                }
+                Err(e) => failed.push(format!("{e:#}")),
             }
         }
     } else {
@@ -166,8 +191,17 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             v["panoptic_quality"] = json!(pq);
             v["leaf_errors"] = json!(leaf_errors);
         }
+        if tip_errors.images > 0 {
+            v["tip_errors"] = json!(tip_errors);
+        }
         if args.per_image {
             v["images"] = json!(pairs);
+            if !tip_outcomes.is_empty() {
+                v["tip_outcomes"] = json!(tip_outcomes
+                    .iter()
+                    .map(|(f, t)| json!({"file": f, "tips": t}))
+                    .collect::<Vec<_>>());
+            }
         }
         println!("{v}");
     } else {
@@ -191,6 +225,27 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 "\nleaf errors (true leaves by visible area; every visible leaf, whatever the truth rule):\n{}",
                 leaf_errors.table()
             );
+        }
+        if tip_errors.images > 0 {
+            println!(
+                "\nleaf tips (a tip belongs to the predicted leaf with the nearest pixel within {} px; \
+                 true − predicted = reached by no leaf + fewer leaves − extra):\n{}",
+                tip_errors.radius,
+                tip_errors.table()
+            );
+            if args.per_image {
+                for (f, t) in &tip_outcomes {
+                    println!(
+                        "{f}\ttips {}\town {}\tsharing {} (−{})\tunreached {}\textra {}",
+                        t.tips,
+                        t.own_leaf,
+                        t.sharing,
+                        t.merged_away,
+                        t.unreached,
+                        t.extra_total()
+                    );
+                }
+            }
         }
         println!("\nper view:");
         println!("| view | images | exact | within ±1 | RMSE | MAE | bias | R² |");

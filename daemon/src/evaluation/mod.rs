@@ -7,3 +7,4 @@ pub mod metrics;
 pub mod plots;
 pub mod segmentation;
 pub mod sources;
+pub mod tip_errors;

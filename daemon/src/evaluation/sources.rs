@@ -59,11 +59,15 @@ pub struct HumanCount {
     pub count: u32,
     /// View parsed from the LemnaTec file name (`SV_108`, `TV_90`, or `?`).
     pub view: String,
+    /// Leaf tips the person marked, `[x, y]` in image pixels, when the CSV
+    /// has a `tips_xy` column (`leaf_tips.csv`) and the row fills it.
+    pub tips: Option<Vec<[f32; 2]>>,
 }
 
-/// Reads a CSV with a header holding `file` and `leaf_count` columns (other
-/// columns, such as `leaf_tips.csv`'s tip coordinates, are ignored); files
-/// are looked up in `images`.
+/// Reads a CSV with a header holding `file` and `leaf_count` columns, and
+/// the tips of an optional `tips_xy` column (a JSON list of `[x, y]`, as in
+/// `leaf_tips.csv`); other columns are ignored. Files are looked up in
+/// `images`.
 pub fn read_counts(csv_path: &Path, images: &Path) -> anyhow::Result<Vec<HumanCount>> {
     let mut rdr =
         csv::Reader::from_path(csv_path).with_context(|| format!("cannot read {}", csv_path.display()))?;
@@ -78,6 +82,7 @@ pub fn read_counts(csv_path: &Path, images: &Path) -> anyhow::Result<Vec<HumanCo
             .with_context(|| format!("{}: no {name:?} column (have {:?})", csv_path.display(), headers))
     };
     let (fc, cc) = (col("file")?, col("leaf_count")?);
+    let tc = col("tips_xy").ok();
     let mut out = Vec::new();
     for (i, rec) in rdr.records().enumerate() {
         let rec = rec.with_context(|| format!("{} row {}", csv_path.display(), i + 2))?;
@@ -89,10 +94,21 @@ pub fn read_counts(csv_path: &Path, images: &Path) -> anyhow::Result<Vec<HumanCo
                 i + 2
             )
         })?;
+        let tips = match tc.and_then(|tc| rec.get(tc)).map(str::trim) {
+            None | Some("") => None,
+            Some(text) => Some(serde_json::from_str::<Vec<[f32; 2]>>(text).with_context(|| {
+                format!(
+                    "{} row {}: tips_xy is not a list of [x, y] pairs",
+                    csv_path.display(),
+                    i + 2
+                )
+            })?),
+        };
         out.push(HumanCount {
             image: images.join(&file),
             count,
             view: view_from_name(&file),
+            tips,
         });
     }
     Ok(out)
@@ -137,6 +153,10 @@ mod tests {
         let v = read_counts(&p, Path::new("/imgs")).unwrap();
         assert_eq!(v[0].count, 5);
         assert_eq!(v[0].image, Path::new("/imgs/a_Vis_SV_108.jpg"));
+        assert_eq!(v[0].tips, Some(vec![[1.0, 2.0]]));
+        std::fs::write(&p, "file,leaf_count,tips_xy\na.jpg,5,\"[[1, 2], [3]]\"\n").unwrap();
+        let e = format!("{:#}", read_counts(&p, Path::new("/")).unwrap_err());
+        assert!(e.contains("row 2: tips_xy is not a list"), "{e}");
         std::fs::write(&p, "name,count\nx,1\n").unwrap();
         let e = read_counts(&p, Path::new("/")).unwrap_err().to_string();
         assert!(e.contains("no \"file\" column"), "{e}");
