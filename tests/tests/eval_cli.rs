@@ -142,11 +142,14 @@ fn evaluates_real_images_with_human_counts() {
 #[test]
 fn real_frames_with_marked_tips_get_a_tip_table() {
     let dev = dev_data().expect("development data beside the repo");
+    let overlays = tempfile::tempdir().unwrap();
     let (out, stdout, stderr) = run(phyllo()
         .args(["eval", "--json", "--per-image", "--counts"])
         .arg(dev.join("leaf_tips.csv"))
         .arg("--images")
-        .arg(dev.join("images")));
+        .arg(dev.join("images"))
+        .arg("--tip-overlays")
+        .arg(overlays.path()));
     assert!(out.status.success(), "{stderr}");
     let v: Value = serde_json::from_str(stdout.trim()).unwrap();
     let tips = &v["tip_errors"];
@@ -191,4 +194,11 @@ fn real_frames_with_marked_tips_get_a_tip_table() {
     }
     // The shipped model reaches most tips with a leaf of their own.
     assert!(n(&tips["total"], "own_leaf") * 2 > human, "{tips}");
+    // One overlay per annotated frame, at the frame's size.
+    for row in v["tip_outcomes"].as_array().unwrap() {
+        let file = std::path::Path::new(row["file"].as_str().unwrap());
+        let name = format!("{}.tips.png", file.file_stem().unwrap().to_string_lossy());
+        let drawn = image::open(overlays.path().join(&name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(drawn.width(), image::image_dimensions(file).unwrap().0, "{name}");
+    }
 }

@@ -13,8 +13,8 @@ use super::counter_args::CounterArgs;
 use crate::evaluation::leaf_errors::LeafErrors;
 use crate::evaluation::metrics::{confusion, confusion_table, per_view, CountMetrics, CountPair};
 use crate::evaluation::segmentation::{panoptic_quality, LeafMatch, Overlaps, PixelMap};
-use crate::evaluation::tip_errors::{TipErrors, TipOutcome};
-use crate::evaluation::{plots, sources};
+use crate::evaluation::tip_errors::{TipErrors, TipMatch, TipOutcome};
+use crate::evaluation::{plots, sources, tip_overlay};
 
 /// Arguments of `phyllo eval`.
 #[derive(Debug, clap::Args)]
@@ -52,6 +52,11 @@ pub struct Args {
     /// predicted leaf with a pixel this near, in the image's pixels.
     #[arg(long, value_name = "PIXELS", default_value_t = 24.0, requires = "counts")]
     pub tip_radius: f32,
+    /// With marked tips: write each image's overlay with its tips ringed
+    /// (white: own leaf, yellow: sharing a leaf, red: reached by none) and
+    /// its extra leaves crossed, as `<name>.tips.png` in this directory.
+    #[arg(long, value_name = "DIR", requires = "counts")]
+    pub tip_overlays: Option<PathBuf>,
 }
 
 /// Runs the evaluation.
@@ -126,6 +131,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             }
         }
     } else if let (Some(csv), Some(images)) = (&args.counts, &args.images) {
+        if let Some(dir) = &args.tip_overlays {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create tip overlay directory {}", dir.display()))?;
+        }
         title = csv
             .file_name()
             .map(|f| f.to_string_lossy().into_owned())
@@ -136,12 +145,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 let bytes = std::fs::read(&hc.image)
                     .with_context(|| format!("cannot read {}", hc.image.display()))?;
                 let analysis = counter.analyse_bytes(&hc.image, &bytes)?;
-                let tips = hc.tips.as_ref().map(|tips| {
-                    let [w, h] = analysis.result.image_size;
-                    let pred = PixelMap::from_analysis(c, &analysis, w as usize, h as usize);
-                    TipOutcome::of(tips, &pred, args.tip_radius)
-                });
-                Ok((analysis.result.leaf_count, tips))
+                let Some(tips) = &hc.tips else {
+                    return Ok((analysis.result.leaf_count, None));
+                };
+                let [w, h] = analysis.result.image_size;
+                let pred = PixelMap::from_analysis(c, &analysis, w as usize, h as usize);
+                let m = TipMatch::of(tips, &pred, args.tip_radius);
+                if let Some(dir) = &args.tip_overlays {
+                    let img =
+                        phyllo_inference::decode::decode_rgb(&hc.image, &bytes, &counter.config().limits)?;
+                    let mut drawn =
+                        phyllo_inference::overlay::render(c, &img, &analysis, !counter.model_info().trained);
+                    tip_overlay::draw(&mut drawn, tips, &m, &analysis.result.instances);
+                    let stem = hc.image.file_stem().map(|s| s.to_string_lossy().into_owned());
+                    let out = dir.join(format!("{}.tips.png", stem.unwrap_or_else(|| "image".into())));
+                    drawn
+                        .save(&out)
+                        .with_context(|| format!("cannot write tip overlay {}", out.display()))?;
+                }
+                Ok((analysis.result.leaf_count, Some(m.outcome)))
             })();
             match outcome {
                 Ok((predicted, tips)) => {

@@ -8,3 +8,4 @@ pub mod plots;
 pub mod segmentation;
 pub mod sources;
 pub mod tip_errors;
+pub mod tip_overlay;

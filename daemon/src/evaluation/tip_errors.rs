@@ -37,9 +37,31 @@ pub struct TipOutcome {
     pub predicted: usize,
 }
 
-impl TipOutcome {
-    /// Matches `tips` (`[x, y]` in image pixels) to the leaves of `pred`: a
-    /// tip belongs to the leaf with the nearest pixel within `radius`.
+/// What became of one marked tip.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum TipFate {
+    /// Reached by this predicted leaf, which reaches no other tip.
+    OwnLeaf(u32),
+    /// Reached by this predicted leaf, which reaches other tips too.
+    Sharing(u32),
+    /// No predicted leaf pixel within the radius.
+    Unreached,
+}
+
+/// One image's tips matched to its predicted leaves, tip by tip.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TipMatch {
+    /// The fate of each tip, in the order given.
+    pub fates: Vec<TipFate>,
+    /// Predicted leaves reaching no tip, with their areas in image pixels.
+    pub extras: Vec<(u32, u64)>,
+    /// The tally.
+    pub outcome: TipOutcome,
+}
+
+impl TipMatch {
+    /// Matches `tips` (`[x, y]` in image pixels) to the leaves of `pred`
+    /// that have a pixel within `radius` of them (see [`assign_tips`]).
     ///
     /// A predicted leaf often stops a few pixels short of the thin tip a
     /// person marks, hence the radius rather than the pixel under the tip.
@@ -50,30 +72,52 @@ impl TipOutcome {
                 *area.entry(*i).or_default() += 1;
             }
         }
+        let nearest = assign_tips(tips, pred, radius);
         let mut reached: BTreeMap<u32, usize> = BTreeMap::new();
-        let mut out = TipOutcome {
+        for id in nearest.iter().flatten() {
+            *reached.entry(*id).or_default() += 1;
+        }
+        let fates = nearest
+            .iter()
+            .map(|n| match n {
+                None => TipFate::Unreached,
+                Some(id) if reached[id] == 1 => TipFate::OwnLeaf(*id),
+                Some(id) => TipFate::Sharing(*id),
+            })
+            .collect();
+        let mut outcome = TipOutcome {
             tips: tips.len(),
             extra: vec![0; EXTRA_AREA_CLASSES.len() + 1],
             predicted: area.len(),
-            ..Self::default()
+            unreached: nearest.iter().filter(|n| n.is_none()).count(),
+            ..TipOutcome::default()
         };
-        for tip in tips {
-            match nearest_leaf(pred, *tip, radius) {
-                Some(id) => *reached.entry(id).or_default() += 1,
-                None => out.unreached += 1,
-            }
-        }
+        let mut extras = Vec::new();
         for (&id, &px) in &area {
             match reached.get(&id).copied().unwrap_or(0) {
-                0 => out.extra[EXTRA_AREA_CLASSES.iter().take_while(|hi| px >= **hi).count()] += 1,
-                1 => out.own_leaf += 1,
+                0 => {
+                    outcome.extra[EXTRA_AREA_CLASSES.iter().take_while(|hi| px >= **hi).count()] += 1;
+                    extras.push((id, px));
+                }
+                1 => outcome.own_leaf += 1,
                 k => {
-                    out.sharing += k;
-                    out.merged_away += k - 1;
+                    outcome.sharing += k;
+                    outcome.merged_away += k - 1;
                 }
             }
         }
-        out
+        Self {
+            fates,
+            extras,
+            outcome,
+        }
+    }
+}
+
+impl TipOutcome {
+    /// The tally of [`TipMatch::of`].
+    pub fn of(tips: &[[f32; 2]], pred: &PixelMap, radius: f32) -> Self {
+        TipMatch::of(tips, pred, radius).outcome
     }
 
     /// Predicted leaves reaching no tip.
@@ -82,25 +126,58 @@ impl TipOutcome {
     }
 }
 
-/// The predicted leaf with a pixel nearest to `tip`, if one lies within `radius`.
-fn nearest_leaf(pred: &PixelMap, [tx, ty]: [f32; 2], radius: f32) -> Option<u32> {
+/// Gives each tip a predicted leaf with a pixel within `radius`, or none.
+///
+/// Pairs are made one to one first, nearest first, so two tips that lie
+/// close together at the ends of two leaves go one to each; only a tip whose
+/// every leaf in reach is already taken shares its nearest one (a merge).
+pub fn assign_tips(tips: &[[f32; 2]], pred: &PixelMap, radius: f32) -> Vec<Option<u32>> {
+    let mut pairs: Vec<(f32, usize, u32)> = Vec::new();
+    for (t, tip) in tips.iter().enumerate() {
+        pairs.extend(
+            leaves_in_reach(pred, *tip, radius)
+                .into_iter()
+                .map(|(id, d2)| (d2, t, id)),
+        );
+    }
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let mut leaf_of: Vec<Option<u32>> = vec![None; tips.len()];
+    let mut taken = std::collections::BTreeSet::new();
+    for &(_, t, id) in &pairs {
+        if leaf_of[t].is_none() && !taken.contains(&id) {
+            leaf_of[t] = Some(id);
+            taken.insert(id);
+        }
+    }
+    // Pairs are sorted nearest first, so the first pair of a tip is its nearest leaf.
+    for &(_, t, id) in &pairs {
+        if leaf_of[t].is_none() {
+            leaf_of[t] = Some(id);
+        }
+    }
+    leaf_of
+}
+
+/// Each predicted leaf with a pixel within `radius` of `tip`, with the
+/// squared distance of its nearest such pixel's centre.
+fn leaves_in_reach(pred: &PixelMap, [tx, ty]: [f32; 2], radius: f32) -> BTreeMap<u32, f32> {
     let r = radius.max(0.0).ceil() as i64;
     let (cx, cy) = (tx.floor() as i64, ty.floor() as i64);
-    let mut best: Option<(f32, u32)> = None;
+    let mut near: BTreeMap<u32, f32> = BTreeMap::new();
     for y in (cy - r).max(0)..=(cy + r).min(pred.height as i64 - 1) {
         for x in (cx - r).max(0)..=(cx + r).min(pred.width as i64 - 1) {
             let i = y as usize * pred.width + x as usize;
             if pred.class[i] != LEAF || pred.instance[i] == 0 {
                 continue;
             }
-            // Distance from the tip to the pixel's centre.
             let d2 = (x as f32 + 0.5 - tx).powi(2) + (y as f32 + 0.5 - ty).powi(2);
-            if d2 <= radius * radius && best.is_none_or(|(b, _)| d2 < b) {
-                best = Some((d2, pred.instance[i]));
+            if d2 <= radius * radius {
+                let e = near.entry(pred.instance[i]).or_insert(d2);
+                *e = e.min(d2);
             }
         }
     }
-    best.map(|(_, id)| id)
+    near
 }
 
 /// The tip outcomes summed over a set of images.
@@ -203,6 +280,17 @@ mod tests {
         assert_eq!((o.own_leaf, o.sharing, o.merged_away, o.unreached), (1, 2, 1, 1));
         assert_eq!(o.predicted, 4);
         assert_eq!(o.extra, vec![2, 0, 0]);
+        let m = TipMatch::of(&tips, &pred, 1.5);
+        assert_eq!(
+            m.fates,
+            vec![
+                TipFate::Sharing(1),
+                TipFate::Sharing(1),
+                TipFate::OwnLeaf(2),
+                TipFate::Unreached
+            ]
+        );
+        assert_eq!(m.extras, vec![(3, 1), (4, 1)]);
         // truth − predicted = unreached + merged away − extra
         let diff = o.tips as i64 - o.predicted as i64;
         assert_eq!(
@@ -219,6 +307,18 @@ mod tests {
         // Outside the image, nothing is reached.
         let o = TipOutcome::of(&[[40.0, 40.0]], &pred, 3.0);
         assert_eq!((o.unreached, o.extra_total()), (1, 2));
+    }
+
+    #[test]
+    fn two_tips_between_two_leaves_go_one_to_each() {
+        // Both tips are nearer leaf 1, but leaf 2 is within reach of the second.
+        let pred = map(&["11..2"]);
+        let tips = [[2.2, 0.5], [2.6, 0.5]];
+        assert_eq!(assign_tips(&tips, &pred, 3.0), vec![Some(1), Some(2)]);
+        let o = TipOutcome::of(&tips, &pred, 3.0);
+        assert_eq!((o.own_leaf, o.sharing, o.extra_total()), (2, 0, 0));
+        // With leaf 2 out of reach, they share leaf 1.
+        assert_eq!(assign_tips(&tips, &pred, 1.5), vec![Some(1), Some(1)]);
     }
 
     #[test]
