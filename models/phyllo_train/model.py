@@ -99,17 +99,50 @@ class FuseUp(nn.Module):
         return self.refine(up2(self.reduce(coarse)) + self.skip(skip))
 
 
+class InstanceUp(nn.Module):
+    """Brings the instance features from stride 4 to 2 with the stem skip.
+
+    ``y = up2(x) + skip(f2)``, then ``y + refine(y)``. The skip's and the
+    refinement's last BatchNorm scales start at zero, so a model initialised
+    from a stride-4 checkpoint starts from that checkpoint's features.
+    """
+
+    def __init__(self, c: int, c_skip: int):
+        super().__init__()
+        self.skip = conv_bn(c_skip, c, 1, act=False)
+        self.refine = nn.Sequential(conv_bn(c, c, 3, groups=c), conv_bn(c, c, 1, act=False))
+
+    def zero_init(self) -> None:
+        """Start as a plain upsampling (see the class doc)."""
+        nn.init.zeros_(self.skip[1].weight)
+        nn.init.zeros_(self.refine[1][1].weight)
+
+    def forward(self, x: torch.Tensor, skip: torch.Tensor) -> torch.Tensor:
+        y = up2(x) + self.skip(skip)
+        return y + self.refine(y)
+
+
 class PhylloNet(nn.Module):
     """Panoptic-DeepLab-style net: returns (semantic logits, centre heatmap, offsets) at stride 2.
 
     ``offset_scale`` multiplies the raw offset head so that its initial output
     range is closer to the targets (tens of output pixels); it is part of the
     graph, so ONNX consumers see offsets directly in output pixels.
+
+    ``instance_stride`` 4 (the shipped layout) runs the centre and offset
+    heads at stride 4 and upsamples their outputs; 2 brings the instance
+    features to stride 2 with the stem skip first (:class:`InstanceUp`), so
+    the centres of small neighbouring leaves can lie one output pixel apart.
+    The outputs are at stride 2 either way.
     """
 
     def __init__(self, num_classes: int = 4, width: tuple[int, ...] = (16, 24, 32, 64, 128),
-                 dec: tuple[int, ...] = (64, 48, 32, 24), offset_scale: float = 8.0):
+                 dec: tuple[int, ...] = (64, 48, 32, 24), offset_scale: float = 8.0,
+                 instance_stride: int = 4):
         super().__init__()
+        if instance_stride not in (2, 4):
+            raise ValueError(f"instance_stride must be 2 or 4, got {instance_stride}")
+        self.instance_stride = instance_stride
         c2, c4, c8, c16, c32 = width
         d16, d8, d4, d2 = dec
         self.offset_scale = offset_scale
@@ -128,6 +161,7 @@ class PhylloNet(nn.Module):
         # Instance branch stays at stride 4 (centre Gaussians and offsets are smooth) and its
         # 3 output channels are upsampled x2: a fraction of the cost of a stride-2 branch.
         self.ins = SepConv(d4, d4)
+        self.ins_up2 = InstanceUp(d4, c2) if instance_stride == 2 else None
         self.center_head = nn.Sequential(SepConv(d4, d4), nn.Conv2d(d4, 1, 1))
         self.offset_head = nn.Sequential(SepConv(d4, d4), nn.Conv2d(d4, 2, 1))
         self._init_weights()
@@ -147,6 +181,8 @@ class PhylloNet(nn.Module):
         for head in (self.center_head, self.offset_head):
             nn.init.normal_(head[-1].weight, std=1e-3)
             nn.init.zeros_(head[-1].bias)
+        if self.ins_up2 is not None:
+            self.ins_up2.zero_init()
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """x: normalised NCHW float32, H and W multiples of 32."""
@@ -161,20 +197,23 @@ class PhylloNet(nn.Module):
         d4 = self.up4(d, f4)
         sem = self.sem_head(self.sem_up2(d4, f2))
         ins = self.ins(d4)
+        if self.ins_up2 is not None:
+            ins = self.ins_up2(ins, f2)
+            return sem, self.center_head(ins), self.offset_head(ins) * self.offset_scale
         center = up2(self.center_head(ins))
         offset = up2(self.offset_head(ins)) * self.offset_scale
         return sem, center, offset
 
 
-def build_model(num_classes: int = 4, seed: int | None = 0) -> PhylloNet:
-    """Build the shipped architecture; with ``seed`` the initial weights are deterministic."""
+def build_model(num_classes: int = 4, seed: int | None = 0, instance_stride: int = 4) -> PhylloNet:
+    """Build the network (``instance_stride``: see :class:`PhylloNet`); with ``seed`` the initial weights are deterministic."""
     if seed is not None:
         g_state = torch.random.get_rng_state()
         torch.manual_seed(seed)
-        model = PhylloNet(num_classes)
+        model = PhylloNet(num_classes, instance_stride=instance_stride)
         torch.random.set_rng_state(g_state)
         return model
-    return PhylloNet(num_classes)
+    return PhylloNet(num_classes, instance_stride=instance_stride)
 
 
 def count_parameters(model: nn.Module) -> int:

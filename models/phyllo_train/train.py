@@ -66,6 +66,14 @@ def describe_data(dirs: list[Path]) -> str:
     return " | ".join(parts)
 
 
+def init_weights(model: torch.nn.Module, state: dict) -> list[str]:
+    """Loads ``state`` into ``model``, allowing only keys the state lacks; returns those keys."""
+    missing, unexpected = model.load_state_dict(state, strict=False)
+    if unexpected:
+        raise SystemExit(f"--init checkpoint has weights this network lacks: {unexpected[:5]}")
+    return list(missing)
+
+
 def lr_at(step: int, total: int, base: float, warmup: int) -> float:
     """Linear warmup then cosine decay to 2% of ``base``."""
     if step < warmup:
@@ -146,6 +154,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--center-weight", type=float, default=200.0)
     ap.add_argument("--offset-weight", type=float, default=0.01)
     ap.add_argument("--top-k", type=float, default=0.2)
+    ap.add_argument("--instance-stride", type=int, default=4, choices=[2, 4],
+                    help="stride of the centre and offset heads (4: the shipped layout; 2: see model.PhylloNet)")
     ap.add_argument("--center-sigma", type=float, default=None,
                     help="centre heatmap Gaussian sigma in output px (default: the contract's); "
                          "training only, the decoder never reads it")
@@ -197,7 +207,8 @@ def main(argv: list[str] | None = None) -> int:
 
     # channels_last: ~2.5x faster depthwise conv / BN training on CPU (oneDNN), also good on GPUs.
     mem = torch.channels_last
-    model = build_model(contract.num_classes, seed=args.seed).to(device, memory_format=mem)
+    model = build_model(contract.num_classes, seed=args.seed,
+                        instance_stride=args.instance_stride).to(device, memory_format=mem)
     ema = ModelEma(model, args.ema) if args.ema > 0 else None
     # No weight decay on BN parameters and biases (standard practice for small nets).
     decay = [p for n, p in model.named_parameters() if p.ndim > 1]
@@ -222,10 +233,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"resumed from {last} at step {step}")
     elif args.init is not None:
         ck = torch.load(args.init, map_location=device, weights_only=False)
-        model.load_state_dict(ck["raw_model"])
+        # Layers the initialising checkpoint lacks (a stride-2 instance
+        # branch on a stride-4 model) keep their fresh, neutral weights.
+        new_layers = init_weights(model, ck["raw_model"])
         if ema is not None:
             # The EMA restarts from the shipped (EMA) weights, so early exports are never worse than the start.
-            ema.module.load_state_dict(ck["model"])
+            init_weights(ema.module, ck["model"])
+        if new_layers:
+            print(f"initialised without the checkpoint: {', '.join(sorted({k.split('.')[0] for k in new_layers}))}")
         print(f"initialised from {args.init} (its step {ck['step']})")
     (args.out / "args.json").write_text(json.dumps({k: str(v) if isinstance(v, Path) else v
                                                     for k, v in vars(args).items()}, indent=1, default=str))

@@ -46,3 +46,19 @@ def test_committed_untrained_model(contract):
     x = np.zeros((3, 3, 64, 96), np.float32)  # dynamic N, H, W
     sem, cen, off = sess.run(None, {contract.input_name: x})
     assert sem.shape == (3, 4, 32, 48) and cen.shape == (3, 1, 32, 48) and off.shape == (3, 2, 32, 48)
+
+
+def test_stride2_instance_branch_starts_as_upsampling(contract):
+    import torch
+
+    from phyllo_train.train import init_weights
+
+    s4 = build_model(contract.num_classes, seed=0).eval()
+    s2 = build_model(contract.num_classes, seed=1, instance_stride=2).eval()
+    assert sorted({k.split(".")[0] for k in init_weights(s2, s4.state_dict())}) == ["ins_up2"]
+    x = torch.randn(1, 3, 64, 64)
+    with torch.no_grad():
+        a, b = s4(x), s2(x)
+    # Same outputs, same shapes; the semantic path is untouched.
+    assert all(u.shape == v.shape for u, v in zip(a, b))
+    assert torch.allclose(a[0], b[0])

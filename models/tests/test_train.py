@@ -21,3 +21,18 @@ def test_train_resume_export(tiny_dataset, tmp_path, contract):
     meta = {p.key: p.value for p in onnx.load(str(out)).metadata_props}
     assert meta["phyllo.trained"] == "true"
     assert "4 train" in meta["phyllo.training_data"]
+
+
+def test_stride2_instance_branch_from_stride4_checkpoint(tiny_dataset, tmp_path, contract):
+    # A stride-4 run, then a stride-2 run initialised from it with a smaller centre sigma.
+    base = tmp_path / "base"
+    common = ["--data", str(tiny_dataset), "--crop", "64", "--batch", "2", "--workers", "0",
+              "--val-limit", "0", "--log-every", "1", "--warmup", "1", "--steps", "1"]
+    assert train.main(common + ["--out", str(base)]) == 0
+    s2 = tmp_path / "s2"
+    assert train.main(common + ["--out", str(s2), "--init", str(base / "last.pt"), "--instance-stride", "2",
+                                "--center-sigma", "2.5"]) == 0
+    out = tmp_path / "s2.onnx"
+    assert export.main(["--checkpoint", str(s2 / "last.pt"), "--out", str(out), "--check-size", "64"]) == 0
+    meta = {p.key: p.value for p in onnx.load(str(out)).metadata_props}
+    assert "centre sigma 2.5" in meta["phyllo.training_data"]
