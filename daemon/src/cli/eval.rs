@@ -250,8 +250,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         if tip_errors.images > 0 {
             println!(
-                "\nleaf tips (a tip belongs to the predicted leaf with the nearest pixel within {} px; \
-                 true − predicted = reached by no leaf + fewer leaves − extra):\n{}",
+                "\nleaf tips (tips pair with predicted leaves that have a pixel within {} px, one to one and \
+                 nearest first; true − predicted = reached by no leaf + fewer leaves − extra):\n{}",
                 tip_errors.radius,
                 tip_errors.table()
             );

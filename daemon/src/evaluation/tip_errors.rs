@@ -181,7 +181,7 @@ fn leaves_in_reach(pred: &PixelMap, [tx, ty]: [f32; 2], radius: f32) -> BTreeMap
 }
 
 /// The tip outcomes summed over a set of images.
-#[derive(Debug, Clone, Default, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct TipErrors {
     /// Images with marked tips.
     pub images: usize,
@@ -195,12 +195,12 @@ impl TipErrors {
     /// An empty sum for tips matched within `radius` image pixels.
     pub fn new(radius: f32) -> Self {
         Self {
+            images: 0,
             radius,
             total: TipOutcome {
                 extra: vec![0; EXTRA_AREA_CLASSES.len() + 1],
                 ..TipOutcome::default()
             },
-            ..Self::default()
         }
     }
 
