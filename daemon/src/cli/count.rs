@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use phyllo_contract::Contract;
+use phyllo_inference::counter::Analysis;
 use phyllo_inference::{overlay, Counter, InferenceError};
 use serde_json::json;
 
@@ -96,21 +97,36 @@ fn count_one(
     let bytes = std::fs::read(path).map_err(|e| InferenceError::image(path, format!("cannot read: {e}")))?;
     let analysis = counter.analyse_bytes(path, &bytes)?;
     if let Some(dir) = overlay_dir {
-        let img = phyllo_inference::decode::decode_rgb(path, &bytes, &counter.config().limits)?;
-        let drawn = overlay::render(
-            Contract::embedded(),
-            &img,
-            &analysis,
-            !counter.model_info().trained,
-        );
-        let stem = path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "image".into());
-        let out = dir.join(format!("{stem}.overlay.png"));
+        let drawn = render_overlay(counter, path, &bytes, &analysis)?;
+        let out = overlay_path(dir, path, "overlay");
         drawn
             .save(&out)
             .map_err(|e| InferenceError::image(&out, format!("cannot write overlay: {e}")))?;
     }
     Ok(analysis.result)
+}
+
+/// Draws `analysis` over the image it was made from (`bytes`, read from `path`).
+pub(super) fn render_overlay(
+    counter: &Counter,
+    path: &Path,
+    bytes: &[u8],
+    analysis: &Analysis,
+) -> Result<image::RgbImage, InferenceError> {
+    let img = phyllo_inference::decode::decode_rgb(path, bytes, &counter.config().limits)?;
+    Ok(overlay::render(
+        Contract::embedded(),
+        &img,
+        analysis,
+        !counter.model_info().trained,
+    ))
+}
+
+/// `DIR/<image stem>.<kind>.png`.
+pub(super) fn overlay_path(dir: &Path, image: &Path, kind: &str) -> PathBuf {
+    let stem = image
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "image".into());
+    dir.join(format!("{stem}.{kind}.png"))
 }

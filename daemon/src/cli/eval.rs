@@ -9,6 +9,7 @@ use phyllo_contract::Contract;
 use phyllo_inference::Counter;
 use serde_json::json;
 
+use super::count::{overlay_path, render_overlay};
 use super::counter_args::CounterArgs;
 use crate::evaluation::leaf_errors::LeafErrors;
 use crate::evaluation::metrics::{confusion, confusion_table, per_view, CountMetrics, CountPair};
@@ -152,13 +153,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 let pred = PixelMap::from_analysis(c, &analysis, w as usize, h as usize);
                 let m = TipMatch::of(tips, &pred, args.tip_radius);
                 if let Some(dir) = &args.tip_overlays {
-                    let img =
-                        phyllo_inference::decode::decode_rgb(&hc.image, &bytes, &counter.config().limits)?;
-                    let mut drawn =
-                        phyllo_inference::overlay::render(c, &img, &analysis, !counter.model_info().trained);
+                    let mut drawn = render_overlay(&counter, &hc.image, &bytes, &analysis)?;
                     tip_overlay::draw(&mut drawn, tips, &m, &analysis.result.instances);
-                    let stem = hc.image.file_stem().map(|s| s.to_string_lossy().into_owned());
-                    let out = dir.join(format!("{}.tips.png", stem.unwrap_or_else(|| "image".into())));
+                    let out = overlay_path(dir, &hc.image, "tips");
                     drawn
                         .save(&out)
                         .with_context(|| format!("cannot write tip overlay {}", out.display()))?;

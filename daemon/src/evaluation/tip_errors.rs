@@ -115,11 +115,6 @@ impl TipMatch {
 }
 
 impl TipOutcome {
-    /// The tally of [`TipMatch::of`].
-    pub fn of(tips: &[[f32; 2]], pred: &PixelMap, radius: f32) -> Self {
-        TipMatch::of(tips, pred, radius).outcome
-    }
-
     /// Predicted leaves reaching no tip.
     pub fn extra_total(&self) -> usize {
         self.extra.iter().sum()
@@ -275,7 +270,7 @@ mod tests {
         let pred = map(&["11........", "11.....22.", "..........", "3........4"]);
         // Two tips on leaf 1, one beside leaf 2, one far from everything.
         let tips = [[0.5, 0.5], [1.5, 1.5], [6.0, 1.5], [5.0, 3.5]];
-        let o = TipOutcome::of(&tips, &pred, 1.5);
+        let o = TipMatch::of(&tips, &pred, 1.5).outcome;
         assert_eq!(o.tips, 4);
         assert_eq!((o.own_leaf, o.sharing, o.merged_away, o.unreached), (1, 2, 1, 1));
         assert_eq!(o.predicted, 4);
@@ -302,10 +297,10 @@ mod tests {
     #[test]
     fn a_tip_goes_to_the_nearest_leaf_only() {
         let pred = map(&["1..2"]);
-        let o = TipOutcome::of(&[[1.4, 0.5]], &pred, 3.0);
+        let o = TipMatch::of(&[[1.4, 0.5]], &pred, 3.0).outcome;
         assert_eq!((o.own_leaf, o.extra_total()), (1, 1));
         // Outside the image, nothing is reached.
-        let o = TipOutcome::of(&[[40.0, 40.0]], &pred, 3.0);
+        let o = TipMatch::of(&[[40.0, 40.0]], &pred, 3.0).outcome;
         assert_eq!((o.unreached, o.extra_total()), (1, 2));
     }
 
@@ -315,7 +310,7 @@ mod tests {
         let pred = map(&["11..2"]);
         let tips = [[2.2, 0.5], [2.6, 0.5]];
         assert_eq!(assign_tips(&tips, &pred, 3.0), vec![Some(1), Some(2)]);
-        let o = TipOutcome::of(&tips, &pred, 3.0);
+        let o = TipMatch::of(&tips, &pred, 3.0).outcome;
         assert_eq!((o.own_leaf, o.sharing, o.extra_total()), (2, 0, 0));
         // With leaf 2 out of reach, they share leaf 1.
         assert_eq!(assign_tips(&tips, &pred, 1.5), vec![Some(1), Some(1)]);
@@ -325,8 +320,8 @@ mod tests {
     fn sums_over_images_and_prints_a_row() {
         let pred = map(&["11..22"]);
         let mut e = TipErrors::new(2.0);
-        e.add(&TipOutcome::of(&[[0.5, 0.5]], &pred, 2.0));
-        e.add(&TipOutcome::of(&[[0.5, 0.5], [1.5, 0.5]], &pred, 2.0));
+        e.add(&TipMatch::of(&[[0.5, 0.5]], &pred, 2.0).outcome);
+        e.add(&TipMatch::of(&[[0.5, 0.5], [1.5, 0.5]], &pred, 2.0).outcome);
         assert_eq!(e.images, 2);
         assert_eq!((e.total.tips, e.total.own_leaf, e.total.sharing), (3, 1, 2));
         assert_eq!(e.total.extra, vec![2, 0, 0]);
