@@ -46,6 +46,10 @@ pub struct LeafTraits {
     pub azimuth: f32,
     /// Lateral offsets of the skeleton's control points, relative to length.
     pub wander: [f32; 7],
+    /// Relative position along the blade where it buckles.
+    pub kink_position: f32,
+    /// Extra bend at the buckle when mature (radians; 0 for an even arc).
+    pub kink_angle: f32,
     /// Final sheath length.
     pub sheath_length: f32,
     /// Final internode length above this leaf's node.
@@ -100,6 +104,10 @@ pub struct LeafState {
     pub insertion: f32,
     /// Current droop gain.
     pub droop: f32,
+    /// Relative position along the blade of the buckle.
+    pub kink_position: f32,
+    /// Current extra bend at the buckle (radians; 0 for an even arc).
+    pub kink: f32,
     /// Current width scale (furled leaves are narrower).
     pub width_scale: f32,
 }
@@ -183,6 +191,16 @@ impl PlantTraits {
             } else {
                 internode * r.normal(1.0, 0.12).clamp(0.6, 1.4)
             };
+            // A stream of its own, so adding buckles left every other trait
+            // of an existing seed as it was.
+            let mut k = rng::stream(seed, "leaf-kink", i as u64);
+            let buckles = k.chance(l.kink_chance * (length / max_len).min(1.0));
+            let kink_position = k.range(l.kink_position);
+            let kink_angle = if buckles {
+                k.range(l.kink_angle_deg).to_radians()
+            } else {
+                0.0
+            };
             leaves.push(LeafTraits {
                 emergence_day: day,
                 expansion_days: exp_days,
@@ -201,6 +219,8 @@ impl PlantTraits {
                 twist: r.range(l.twist_deg).to_radians(),
                 azimuth: azimuth0 + i as f32 * PI + r.normal(0.0, l.azimuth_sd_deg.to_radians()),
                 wander,
+                kink_position,
+                kink_angle,
                 sheath_length: length * sheath_frac * r.normal(1.0, 0.08).clamp(0.8, 1.2),
                 internode_length,
                 elongation_days: r.range(s.elongation_days),
@@ -315,6 +335,8 @@ impl PlantTraits {
                 sheath_length: if furled { 0.0 } else { collar[i] - nodes[i] },
                 insertion: 0.04 + (leaf.insertion - 0.04) * open,
                 droop: leaf.droop * open * (1.0 + 0.8 * senescence),
+                kink_position: leaf.kink_position,
+                kink: leaf.kink_angle * open,
                 width_scale: 0.45 + 0.55 * open,
             });
         }
@@ -366,5 +388,28 @@ mod tests {
         let old = traits.at(56.0);
         assert!(old.stem_height > young.stem_height);
         assert!(old.emerged > young.emerged);
+    }
+
+    #[test]
+    fn buckles_come_from_their_own_stream_and_leave_other_traits_alone() {
+        let mut never = Preset::load("maize").unwrap();
+        never.leaf.kink_chance = 0.0;
+        let mut always = never.clone();
+        always.leaf.kink_chance = 1.0;
+        let (a, b) = (PlantTraits::sample(&never, 7), PlantTraits::sample(&always, 7));
+        assert!(a.leaves.iter().all(|l| l.kink_angle == 0.0));
+        // The longest leaf buckles for sure at chance 1, shorter ones in
+        // proportion to their length.
+        assert!(b.leaves.iter().filter(|l| l.kink_angle > 0.0).count() >= 1);
+        for (x, y) in a.leaves.iter().zip(&b.leaves) {
+            assert_eq!(
+                (x.length, x.insertion, x.droop, x.azimuth),
+                (y.length, y.insertion, y.droop, y.azimuth)
+            );
+            assert_eq!(x.kink_position, y.kink_position);
+        }
+        // A buckle opens with the leaf: none while it is still furled.
+        let young = b.at(b.leaves[3].emergence_day + 0.1);
+        assert!(young.leaves.iter().filter(|l| l.rank == 3).all(|l| l.kink == 0.0));
     }
 }

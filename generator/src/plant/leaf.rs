@@ -24,31 +24,50 @@ fn width_profile(u: f32, peak: f32, base: f32) -> f32 {
     }
 }
 
-/// Angle of the skeleton from vertical at relative position `u`.
-fn bend_angle(u: f32, insertion: f32, tip: f32) -> f32 {
-    insertion + (tip - insertion) * u.powf(1.4)
+/// Relative blade length over which a buckle turns the midrib.
+const KINK_SPAN: f32 = 0.06;
+/// The skeleton never points further than this from vertical, so a buckled
+/// tip hangs down and does not curl back up toward the stem.
+const MAX_BEND: f32 = 178.0 * PI / 180.0;
+
+/// How a blade's skeleton bends: an even arc from the insertion angle to the
+/// tip angle, plus an optional buckle, a sharp extra bend over a short span.
+#[derive(Debug, Clone, Copy)]
+struct Bend {
+    insertion: f32,
+    tip: f32,
+    kink_position: f32,
+    kink: f32,
+}
+
+impl Bend {
+    /// Angle of the skeleton from vertical at relative position `u`.
+    fn angle(&self, u: f32) -> f32 {
+        let arc = self.insertion + (self.tip - self.insertion) * u.powf(1.4);
+        let x = ((u - self.kink_position) / KINK_SPAN + 0.5).clamp(0.0, 1.0);
+        (arc + self.kink * x * x * (3.0 - 2.0 * x)).min(MAX_BEND)
+    }
 }
 
 /// The skeleton's control points: integrate the bend angle in the leaf's
 /// vertical plane, then displace sideways by the leaf's wander.
-fn control_points(
-    base: Vec3,
-    out: Vec3,
-    side: Vec3,
-    length: f32,
-    insertion: f32,
-    droop: f32,
-    wander: &[f32; 7],
-) -> Vec<Vec3> {
+fn control_points(base: Vec3, out: Vec3, side: Vec3, state: &LeafState, wander: &[f32; 7]) -> Vec<Vec3> {
+    let length = state.length.max(1e-3);
+    let insertion = state.insertion;
     // Longer leaves bend more under their own weight.
-    let droop = droop * (length / 0.5).clamp(0.3, 1.4);
-    let tip = (insertion + droop * 150f32.to_radians()).min(175f32.to_radians());
+    let droop = state.droop * (length / 0.5).clamp(0.3, 1.4);
+    let bend = Bend {
+        insertion,
+        tip: (insertion + droop * 150f32.to_radians()).min(175f32.to_radians()),
+        kink_position: state.kink_position,
+        kink: state.kink,
+    };
     let steps = 96;
     let ds = length / steps as f32;
     let mut p = base;
     let mut pts = vec![base];
     for k in 0..steps {
-        let a = bend_angle((k as f32 + 0.5) / steps as f32, insertion, tip);
+        let a = bend.angle((k as f32 + 0.5) / steps as f32);
         p += (out * a.sin() + Vec3::Y * a.cos()) * ds;
         if (k + 1) % (steps / 6) == 0 {
             pts.push(p);
@@ -73,15 +92,7 @@ pub fn blade(
     let out = Vec3::new(c, 0.0, s);
     let side0 = Vec3::new(-s, 0.0, c);
     let base = Vec3::new(0.0, state.base_height, 0.0) + out * stem_radius * (0.8 + 0.4 * (1.0 - state.furl));
-    let spline = CatmullRom::new(control_points(
-        base,
-        out,
-        side0,
-        state.length.max(1e-3),
-        state.insertion,
-        state.droop,
-        &traits.wander,
-    ));
+    let spline = CatmullRom::new(control_points(base, out, side0, state, &traits.wander));
     let pts = spline.sample(BLADE_SEGMENTS);
     let width = traits.width * state.width_scale;
     let mut rows = Vec::with_capacity(pts.len());
@@ -194,5 +205,28 @@ mod tests {
         assert!(width_profile(1.0, 0.4, 0.4).abs() < 1e-6);
         assert!((width_profile(0.4, 0.4, 0.4) - 1.0).abs() < 1e-5);
         assert!((width_profile(0.0, 0.4, 0.4) - 0.4).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_buckle_adds_its_angle_over_a_short_span_and_never_curls_back() {
+        let even = Bend {
+            insertion: 0.5,
+            tip: 1.5,
+            kink_position: 0.5,
+            kink: 0.0,
+        };
+        let buckled = Bend { kink: 1.2, ..even };
+        // Before the fold the two blades coincide, after it they differ by
+        // the whole buckle.
+        assert_eq!(buckled.angle(0.4), even.angle(0.4));
+        assert!((buckled.angle(0.6) - even.angle(0.6) - 1.2).abs() < 1e-5);
+        // Half the buckle is reached at the fold itself.
+        assert!((buckled.angle(0.5) - even.angle(0.5) - 0.6).abs() < 1e-5);
+        let steep = Bend {
+            kink: 2.0,
+            tip: 2.8,
+            ..even
+        };
+        assert!(steep.angle(1.0) <= MAX_BEND);
     }
 }

@@ -134,6 +134,22 @@ pub struct LeafShape {
     pub azimuth_sd_deg: f32,
     /// Lateral wander of the skeleton relative to length.
     pub wander: Range,
+    /// Chance that the longest leaf buckles at its midrib and hangs from a
+    /// sharp fold instead of an even arc; shorter leaves buckle less often
+    /// in proportion to their length. Real drooping maize and sorghum leaves
+    /// do this, and models trained on even arcs split them at the fold.
+    #[serde(default)]
+    pub kink_chance: f32,
+    /// Relative position along the blade of the fold.
+    #[serde(default = "default_kink_position")]
+    pub kink_position: Range,
+    /// Extra bend at the fold, degrees.
+    #[serde(default)]
+    pub kink_angle_deg: Range,
+}
+
+fn default_kink_position() -> Range {
+    [0.4, 0.7]
 }
 
 /// Stem and sheath geometry.
@@ -276,7 +292,7 @@ impl Preset {
         }
         let l = &self.leaf;
         let s = &self.stem;
-        let ranges: [(&str, Range, f32, f32); 27] = [
+        let ranges: [(&str, Range, f32, f32); 30] = [
             ("growth.first_emergence_day", g.first_emergence_day, 0.0, 30.0),
             ("growth.phyllochron_days", g.phyllochron_days, 0.5, 15.0),
             ("growth.expansion_days", g.expansion_days, 1.0, 30.0),
@@ -302,6 +318,9 @@ impl Preset {
             ("leaf.wave_length", l.wave_length, 0.005, 1.0),
             ("leaf.twist_deg", l.twist_deg, -360.0, 360.0),
             ("leaf.wander", l.wander, 0.0, 0.3),
+            ("leaf.kink_chance", [l.kink_chance, l.kink_chance], 0.0, 1.0),
+            ("leaf.kink_position", l.kink_position, 0.1, 0.9),
+            ("leaf.kink_angle_deg", l.kink_angle_deg, 0.0, 120.0),
             ("stem.base_radius", s.base_radius, 0.001, 0.1),
             ("stem.internode_length", s.internode_length, 0.0, 0.5),
             ("stem.elongation_days", s.elongation_days, 0.5, 60.0),
