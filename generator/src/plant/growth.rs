@@ -104,9 +104,8 @@ pub struct LeafState {
     pub insertion: f32,
     /// Current droop gain.
     pub droop: f32,
-    /// Relative position along the blade of the buckle.
-    pub kink_position: f32,
-    /// Current extra bend at the buckle (radians; 0 for an even arc).
+    /// Current extra bend at the buckle (radians; 0 for an even arc); where
+    /// it sits is the leaf's trait `kink_position`.
     pub kink: f32,
     /// Current width scale (furled leaves are narrower).
     pub width_scale: f32,
@@ -335,7 +334,6 @@ impl PlantTraits {
                 sheath_length: if furled { 0.0 } else { collar[i] - nodes[i] },
                 insertion: 0.04 + (leaf.insertion - 0.04) * open,
                 droop: leaf.droop * open * (1.0 + 0.8 * senescence),
-                kink_position: leaf.kink_position,
                 kink: leaf.kink_angle * open,
                 width_scale: 0.45 + 0.55 * open,
             });

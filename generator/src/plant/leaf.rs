@@ -51,7 +51,7 @@ impl Bend {
 
 /// The skeleton's control points: integrate the bend angle in the leaf's
 /// vertical plane, then displace sideways by the leaf's wander.
-fn control_points(base: Vec3, out: Vec3, side: Vec3, state: &LeafState, wander: &[f32; 7]) -> Vec<Vec3> {
+fn control_points(base: Vec3, out: Vec3, side: Vec3, traits: &LeafTraits, state: &LeafState) -> Vec<Vec3> {
     let length = state.length.max(1e-3);
     let insertion = state.insertion;
     // Longer leaves bend more under their own weight.
@@ -59,7 +59,7 @@ fn control_points(base: Vec3, out: Vec3, side: Vec3, state: &LeafState, wander: 
     let bend = Bend {
         insertion,
         tip: (insertion + droop * 150f32.to_radians()).min(175f32.to_radians()),
-        kink_position: state.kink_position,
+        kink_position: traits.kink_position,
         kink: state.kink,
     };
     let steps = 96;
@@ -74,7 +74,7 @@ fn control_points(base: Vec3, out: Vec3, side: Vec3, state: &LeafState, wander: 
         }
     }
     for (k, q) in pts.iter_mut().enumerate() {
-        *q += side * wander[k] * length;
+        *q += side * traits.wander[k] * length;
     }
     pts
 }
@@ -92,7 +92,7 @@ pub fn blade(
     let out = Vec3::new(c, 0.0, s);
     let side0 = Vec3::new(-s, 0.0, c);
     let base = Vec3::new(0.0, state.base_height, 0.0) + out * stem_radius * (0.8 + 0.4 * (1.0 - state.furl));
-    let spline = CatmullRom::new(control_points(base, out, side0, state, &traits.wander));
+    let spline = CatmullRom::new(control_points(base, out, side0, traits, state));
     let pts = spline.sample(BLADE_SEGMENTS);
     let width = traits.width * state.width_scale;
     let mut rows = Vec::with_capacity(pts.len());
