@@ -20,7 +20,7 @@ import onnx
 import torch
 
 from .contract import Contract, load_contract
-from .model import build_model, count_parameters
+from .model import architecture_kwargs, build_model, count_parameters
 
 OPSET = 17
 
@@ -117,8 +117,7 @@ def check_onnx(path: str | Path, model: torch.nn.Module, contract: Contract, *, 
 def load_checkpoint_model(path: str | Path, contract: Contract) -> tuple[torch.nn.Module, dict]:
     """Build the network and load weights from a training checkpoint; returns (model, checkpoint)."""
     ckpt = torch.load(str(path), map_location="cpu", weights_only=False)
-    stride = int((ckpt.get("args") or {}).get("instance_stride", 4))
-    model = build_model(contract.num_classes, seed=None, instance_stride=stride)
+    model = build_model(contract.num_classes, seed=None, **architecture_kwargs(ckpt.get("args")))
     model.load_state_dict(ckpt["model"])
     return model, ckpt
 

@@ -134,11 +134,16 @@ class PhylloNet(nn.Module):
     features to stride 2 with the stem skip first (:class:`InstanceUp`), so
     the centres of small neighbouring leaves can lie one output pixel apart.
     The outputs are at stride 2 either way.
+
+    ``dec`` sets the decoder's channels at strides 16, 8, 4 and 2 (semantic
+    branch), and ``ins_width`` the instance branch's (default: the stride-4
+    decoder's). A wider network can start from a narrower one's checkpoint
+    through :func:`grow_state`.
     """
 
     def __init__(self, num_classes: int = 4, width: tuple[int, ...] = (16, 24, 32, 64, 128),
                  dec: tuple[int, ...] = (64, 48, 32, 24), offset_scale: float = 8.0,
-                 instance_stride: int = 4):
+                 instance_stride: int = 4, ins_width: int | None = None):
         super().__init__()
         if instance_stride not in (2, 4):
             raise ValueError(f"instance_stride must be 2 or 4, got {instance_stride}")
@@ -160,10 +165,11 @@ class PhylloNet(nn.Module):
         self.sem_head = nn.Sequential(conv_bn(d2, d2, 3, groups=d2), nn.Conv2d(d2, num_classes, 1))
         # Instance branch stays at stride 4 (centre Gaussians and offsets are smooth) and its
         # 3 output channels are upsampled x2: a fraction of the cost of a stride-2 branch.
-        self.ins = SepConv(d4, d4)
-        self.ins_up2 = InstanceUp(d4, c2) if instance_stride == 2 else None
-        self.center_head = nn.Sequential(SepConv(d4, d4), nn.Conv2d(d4, 1, 1))
-        self.offset_head = nn.Sequential(SepConv(d4, d4), nn.Conv2d(d4, 2, 1))
+        di = ins_width or d4
+        self.ins = SepConv(d4, di)
+        self.ins_up2 = InstanceUp(di, c2) if instance_stride == 2 else None
+        self.center_head = nn.Sequential(SepConv(di, di), nn.Conv2d(di, 1, 1))
+        self.offset_head = nn.Sequential(SepConv(di, di), nn.Conv2d(di, 2, 1))
         self._init_weights()
 
     def _init_weights(self) -> None:
@@ -205,15 +211,57 @@ class PhylloNet(nn.Module):
         return sem, center, offset
 
 
-def build_model(num_classes: int = 4, seed: int | None = 0, instance_stride: int = 4) -> PhylloNet:
-    """Build the network (``instance_stride``: see :class:`PhylloNet`); with ``seed`` the initial weights are deterministic."""
+DEFAULT_DEC = (64, 48, 32, 24)
+
+
+def build_model(num_classes: int = 4, seed: int | None = 0, instance_stride: int = 4,
+                dec: tuple[int, ...] | None = None, ins_width: int | None = None) -> PhylloNet:
+    """Build the network (``instance_stride``, ``dec``, ``ins_width``: see :class:`PhylloNet`); with ``seed`` the initial weights are deterministic."""
+    kw = dict(instance_stride=instance_stride, dec=tuple(dec or DEFAULT_DEC), ins_width=ins_width)
     if seed is not None:
         g_state = torch.random.get_rng_state()
         torch.manual_seed(seed)
-        model = PhylloNet(num_classes, instance_stride=instance_stride)
+        model = PhylloNet(num_classes, **kw)
         torch.random.set_rng_state(g_state)
         return model
-    return PhylloNet(num_classes, instance_stride=instance_stride)
+    return PhylloNet(num_classes, **kw)
+
+
+def architecture_kwargs(args: dict | None) -> dict:
+    """``build_model`` keyword arguments from a checkpoint's saved training args (older ones lack the newer keys)."""
+    args = args or {}
+    dec = args.get("dec")
+    if isinstance(dec, str):
+        dec = tuple(int(v) for v in dec.split(","))
+    return {"instance_stride": int(args.get("instance_stride", 4)),
+            "dec": tuple(dec) if dec else None,
+            "ins_width": int(args["ins_width"]) if args.get("ins_width") else None}
+
+
+def grow_state(model: nn.Module, state: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """``state`` from a narrower network of the same layout, fitted to ``model``'s shapes.
+
+    Each tensor fills the leading slice of ``model``'s fresh one. The added
+    output channels keep their fresh weights, and every weight that reads an
+    added input channel (dimension 1 of a dense convolution) is zeroed, so in
+    eval mode the wider network computes exactly what the narrow one did: the
+    added channels start as unused capacity that training then puts to work
+    (the zero-initialised widening of Net2Net, Chen et al., 2016).
+    """
+    fresh = model.state_dict()
+    out: dict[str, torch.Tensor] = {}
+    for k, old in state.items():
+        if k not in fresh or fresh[k].shape == old.shape:
+            out[k] = old
+            continue
+        new = fresh[k].clone()
+        if new.ndim != old.ndim or any(o > n for o, n in zip(old.shape, new.shape)):
+            raise ValueError(f"{k}: cannot grow {tuple(old.shape)} into {tuple(new.shape)}")
+        if new.ndim == 4 and new.shape[1] > old.shape[1]:
+            new[:, old.shape[1]:] = 0.0
+        new[tuple(slice(0, d) for d in old.shape)] = old
+        out[k] = new
+    return out
 
 
 def count_parameters(model: nn.Module) -> int:

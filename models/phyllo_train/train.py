@@ -30,7 +30,7 @@ from .contract import load_contract
 from .dataset import PanopticDataset, read_label, read_manifest
 from .ema import ModelEma
 from .losses import LossWeights, panoptic_loss
-from .model import build_model, count_parameters
+from .model import build_model, count_parameters, grow_state
 from .postprocess import decode, label_leaf_count
 
 
@@ -66,8 +66,20 @@ def describe_data(dirs: list[Path]) -> str:
     return " | ".join(parts)
 
 
+def _widths(text: str) -> tuple[int, ...]:
+    """``--dec`` parser: four comma-separated channel counts."""
+    vals = tuple(int(v) for v in text.split(","))
+    if len(vals) != 4 or min(vals) < 1:
+        raise argparse.ArgumentTypeError(f"expected four positive channel counts, got {text!r}")
+    return vals
+
+
 def init_weights(model: torch.nn.Module, state: dict) -> list[str]:
-    """Loads ``state`` into ``model``, allowing only keys the state lacks; returns those keys."""
+    """Loads ``state`` into ``model``, allowing only keys the state lacks and growing narrower layers; returns the missing keys."""
+    try:
+        state = grow_state(model, state)
+    except ValueError as e:
+        raise SystemExit(f"--init checkpoint does not fit this network: {e}") from e
     missing, unexpected = model.load_state_dict(state, strict=False)
     if unexpected:
         raise SystemExit(f"--init checkpoint has weights this network lacks: {unexpected[:5]}")
@@ -156,6 +168,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--top-k", type=float, default=0.2)
     ap.add_argument("--instance-stride", type=int, default=4, choices=[2, 4],
                     help="stride of the centre and offset heads (4: the shipped layout; 2: see model.PhylloNet)")
+    ap.add_argument("--dec", type=_widths, default=None,
+                    help="decoder channels at strides 16,8,4,2 (default 64,48,32,24); --init from a narrower "
+                         "checkpoint grows it without changing its output (model.grow_state)")
+    ap.add_argument("--ins-width", type=int, default=None,
+                    help="instance branch channels (default: the stride-4 decoder's); grows like --dec")
     ap.add_argument("--center-sigma", type=float, default=None,
                     help="centre heatmap Gaussian sigma in output px (default: the contract's); "
                          "training only, the decoder never reads it")
@@ -207,8 +224,8 @@ def main(argv: list[str] | None = None) -> int:
 
     # channels_last: ~2.5x faster depthwise conv / BN training on CPU (oneDNN), also good on GPUs.
     mem = torch.channels_last
-    model = build_model(contract.num_classes, seed=args.seed,
-                        instance_stride=args.instance_stride).to(device, memory_format=mem)
+    model = build_model(contract.num_classes, seed=args.seed, instance_stride=args.instance_stride,
+                        dec=args.dec, ins_width=args.ins_width).to(device, memory_format=mem)
     ema = ModelEma(model, args.ema) if args.ema > 0 else None
     # No weight decay on BN parameters and biases (standard practice for small nets).
     decay = [p for n, p in model.named_parameters() if p.ndim > 1]

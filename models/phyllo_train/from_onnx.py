@@ -1,0 +1,217 @@
+"""Rebuild a training checkpoint from an exported ONNX model.
+
+    python -m phyllo_train.from_onnx models/phyllo.onnx --out runs/s10-onnx/best.pt \
+        [--calibrate /work/data/train-s2 --images 64]
+
+Training checkpoints are not committed; the shipped ONNX file is. Without
+this, continuing from the shipped model means rerunning its whole recipe
+(hours on a CPU). Export folds each BatchNorm into the convolution before
+it, so the ONNX file holds, per convolution, W' = W·γ/σ and b' = β − μ·γ/σ.
+Those are loaded into the same network, Conv by Conv in execution order
+(shapes are checked), and every BatchNorm is set so that in eval mode it
+adds b' and nothing else: the rebuilt model computes what the ONNX file
+computes (checked against ONNX Runtime on every run).
+
+Training mode normalises by batch statistics instead, which an identity
+BatchNorm would get badly wrong. With ``--calibrate`` the BatchNorms take the
+per-channel mean μ_c and variance v_c of their inputs on that dataset's
+images: running_mean = μ_c, running_var = v_c, γ = sqrt(v_c + ε),
+β = b' + μ_c. Eval mode is still exact, and a training batch whose
+statistics are close to the dataset's sees nearly the same function, so
+fine-tuning starts from the shipped model instead of from a jolt.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import onnx
+import torch
+from onnx import numpy_helper
+from torch import nn
+
+from .contract import Contract, load_contract
+from .model import PhylloNet, build_model
+
+
+def onnx_convs(path: str | Path) -> list[tuple[str, np.ndarray, np.ndarray | None]]:
+    """(node name, weight, bias) of every Conv in the graph, in graph order."""
+    proto = onnx.load(str(path))
+    inits = {i.name: numpy_helper.to_array(i) for i in proto.graph.initializer}
+    convs = []
+    for node in proto.graph.node:
+        if node.op_type != "Conv":
+            continue
+        if any(name and name not in inits for name in node.input[1:]):
+            raise ValueError(f"{path}: Conv {node.name} takes its weight or bias from the graph, not an initializer")
+        bias = inits[node.input[2]] if len(node.input) > 2 and node.input[2] else None
+        convs.append((node.name, inits[node.input[1]], bias))
+    return convs
+
+
+def conv_order(model: nn.Module, contract: Contract) -> list[nn.Conv2d]:
+    """The model's Conv2d modules in the order one forward pass runs them (the exporter's order)."""
+    seen: list[nn.Conv2d] = []
+    hooks = [m.register_forward_hook(lambda mod, _i, _o: seen.append(mod))
+             for m in model.modules() if isinstance(m, nn.Conv2d)]
+    try:
+        with torch.no_grad():
+            model.eval()(torch.zeros(1, 3, contract.tile, contract.tile))
+    finally:
+        for h in hooks:
+            h.remove()
+    return seen
+
+
+def following_bn(model: nn.Module) -> dict[nn.Conv2d, nn.BatchNorm2d]:
+    """Each Conv2d that a BatchNorm2d directly follows in an ``nn.Sequential`` (``conv_bn``'s layout)."""
+    pairs: dict[nn.Conv2d, nn.BatchNorm2d] = {}
+    for seq in model.modules():
+        if isinstance(seq, nn.Sequential):
+            kids = list(seq.children())
+            for a, b in zip(kids, kids[1:]):
+                if isinstance(a, nn.Conv2d) and isinstance(b, nn.BatchNorm2d):
+                    pairs[a] = b
+    return pairs
+
+
+def load_folded(model: PhylloNet, path: str | Path, contract: Contract) -> int:
+    """Loads the ONNX file's folded weights into ``model`` (identity BatchNorms); returns the Conv count."""
+    convs = onnx_convs(path)
+    order = conv_order(model, contract)
+    if len(convs) != len(order):
+        raise ValueError(f"{path}: {len(convs)} Conv nodes, but the network runs {len(order)} convolutions "
+                         "(another architecture?)")
+    bns = following_bn(model)
+    with torch.no_grad():
+        for (name, w, b), conv in zip(convs, order):
+            if tuple(w.shape) != tuple(conv.weight.shape):
+                raise ValueError(f"{path}: Conv {name} has weight {w.shape}, the network expects "
+                                 f"{tuple(conv.weight.shape)} at this point")
+            conv.weight.copy_(torch.from_numpy(w.copy()))
+            bias = torch.from_numpy(b.copy()) if b is not None else torch.zeros(w.shape[0])
+            bn = bns.get(conv)
+            if bn is None:
+                if conv.bias is None:
+                    if b is not None and np.any(b != 0):
+                        raise ValueError(f"{path}: Conv {name} has a bias, the network's has none")
+                else:
+                    conv.bias.copy_(bias)
+                continue
+            if conv.bias is not None:
+                raise ValueError(f"Conv before {bn} unexpectedly has a bias")
+            # eval: (z - 0) / sqrt((1 - eps) + eps) * 1 + b' = z + b'
+            bn.running_mean.zero_()
+            bn.running_var.fill_(1.0 - bn.eps)
+            bn.weight.fill_(1.0)
+            bn.bias.copy_(bias)
+    return len(convs)
+
+
+def calibrate_bn(model: PhylloNet, batches: list[torch.Tensor]) -> None:
+    """Re-expresses every BatchNorm around its inputs' statistics on ``batches``; eval output is unchanged."""
+    sums: dict[nn.BatchNorm2d, list[torch.Tensor]] = {}
+
+    def record(mod: nn.BatchNorm2d, inputs: tuple[torch.Tensor, ...], _out: torch.Tensor) -> None:
+        z = inputs[0].detach().double()
+        acc = sums.setdefault(mod, [torch.zeros(z.shape[1], dtype=torch.float64),
+                                    torch.zeros(z.shape[1], dtype=torch.float64), torch.zeros((), dtype=torch.float64)])
+        acc[0] += z.sum(dim=(0, 2, 3))
+        acc[1] += (z * z).sum(dim=(0, 2, 3))
+        acc[2] += z.shape[0] * z.shape[2] * z.shape[3]
+
+    bns = [m for m in model.modules() if isinstance(m, nn.BatchNorm2d)]
+    hooks = [m.register_forward_hook(record) for m in bns]
+    try:
+        with torch.no_grad():
+            model.eval()
+            for x in batches:
+                model(x)
+    finally:
+        for h in hooks:
+            h.remove()
+    with torch.no_grad():
+        for bn in bns:
+            if bn not in sums:
+                continue
+            s, ss, n = sums[bn]
+            mean = s / n
+            var = (ss / n - mean * mean).clamp_min(0.0)
+            # Current eval map: (z - m0) / sqrt(v0 + eps) * g0 + b0 = a*z + c.
+            a = bn.weight.double() / torch.sqrt(bn.running_var.double() + bn.eps)
+            c = bn.bias.double() - a * bn.running_mean.double()
+            gamma = a * torch.sqrt(var + bn.eps)
+            bn.running_mean.copy_(mean.float())
+            bn.running_var.copy_(var.float())
+            bn.weight.copy_(gamma.float())
+            bn.bias.copy_((a * mean + c).float())
+
+
+def calibration_batches(data: Path, contract: Contract, images: int, batch: int = 4, seed: int = 0) -> list[torch.Tensor]:
+    """Training-style crops (the train split's augmentation) of ``images`` images from ``data``."""
+    from .augment import AugmentConfig
+    from .dataset import PanopticDataset
+
+    ds = PanopticDataset(data, "train", AugmentConfig(), contract, seed=seed, limit=images)
+    xs = [ds[i][0] for i in range(len(ds))]
+    return [torch.stack(xs[i:i + batch]) for i in range(0, len(xs), batch)]
+
+
+def max_ort_difference(model: nn.Module, path: str | Path, contract: Contract, size: int = 256) -> float:
+    """Largest absolute difference between ONNX Runtime on ``path`` and ``model`` in eval mode."""
+    import onnxruntime as ort
+
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    x = np.random.default_rng(0).standard_normal((1, 3, size, size), dtype=np.float32)
+    got = sess.run(list(contract.output_names), {contract.input_name: x})
+    with torch.no_grad():
+        want = [t.numpy() for t in model.eval()(torch.from_numpy(x))]
+    return max(float(np.max(np.abs(g - w))) for g, w in zip(got, want))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """CLI entry point."""
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.from_onnx", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("onnx", type=Path, help="an ONNX file exported by phyllo_train.export (stride-4 instance heads)")
+    ap.add_argument("--out", type=Path, required=True, help="checkpoint to write (.pt), usable as --init")
+    ap.add_argument("--calibrate", type=Path, default=None, help="a phyllo-gen dataset whose train images set the BatchNorm statistics")
+    ap.add_argument("--images", type=int, default=64, help="images for --calibrate")
+    ap.add_argument("--contract", default=None, help="contract.toml (default: models/contract.toml)")
+    args = ap.parse_args(argv)
+
+    contract = load_contract(args.contract)
+    model = build_model(contract.num_classes, seed=0)
+    try:
+        n = load_folded(model, args.onnx, contract)
+    except (ValueError, OSError) as e:
+        print(f"from_onnx: {e}", file=sys.stderr)
+        return 2
+    if args.calibrate is not None:
+        calibrate_bn(model, calibration_batches(args.calibrate, contract, args.images))
+    diff = max_ort_difference(model, args.onnx, contract)
+    scale = 1e-3 * 8.0  # offsets run to tens of pixels; same tolerance as export's check
+    if diff > scale:
+        print(f"from_onnx: the rebuilt model differs from {args.onnx} by {diff:.2e}", file=sys.stderr)
+        return 1
+    meta = {p.key: p.value for p in onnx.load(str(args.onnx)).metadata_props}
+    state = model.state_dict()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    torch.save({
+        "model": state, "raw_model": state, "ema": None, "step": 0, "best": float("inf"),
+        "args": {"instance_stride": 4, "from_onnx": str(args.onnx)},
+        "training_data": meta.get(contract.meta_training_data, "unknown"),
+        "contract_version": contract.version,
+        "from_onnx": {"file": str(args.onnx), "model_name": meta.get(contract.meta_model_name, "")},
+    }, args.out)
+    print(f"wrote {args.out}: {n} convolutions from {args.onnx} ({meta.get(contract.meta_model_name, '?')}); "
+          f"BatchNorm {'calibrated on ' + str(args.calibrate) if args.calibrate else 'identity'}; "
+          f"ONNX Runtime vs rebuilt model max abs diff {diff:.2e}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
