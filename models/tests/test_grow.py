@@ -34,8 +34,10 @@ def test_wider_decoder_and_instance_branch_start_as_the_narrow_network(contract)
         opt.zero_grad()
         sum(t.square().mean() for t in wide(x)).backward()
         opt.step()
-    dense = [p.detach() for p in wide.parameters() if p.ndim == 4 and p.shape[1] > 1]
-    assert any(float(p[:, -1].abs().sum()) > 0 for p in dense)
+    small = narrow.state_dict()
+    grown = [p.detach() for n, p in wide.named_parameters()
+             if p.ndim == 4 and p.shape[1] > small[n].shape[1]]  # zeroed where they read added channels
+    assert grown and any(float(p[:, -1].abs().sum()) > 0 for p in grown)
 
 
 def test_grow_refuses_a_narrower_target(contract):
