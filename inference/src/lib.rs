@@ -24,7 +24,6 @@ pub mod result;
 pub mod runtime;
 pub mod stitch;
 pub mod tiling;
-pub mod votes;
 pub mod zoom;
 
 pub use counter::{Counter, CounterConfig};

@@ -9,16 +9,11 @@
 //! 4. each instance takes the majority class of its pixels;
 //! 5. instances smaller than the minimum area are dropped.
 //!
-//! Between 2 and 3, offset votes may add centres the heatmap missed
-//! ([`crate::votes`], off unless `vote_min` is set).
-//!
 //! Everything here works in output pixels (the model's stride).
 
 use ndarray::{Array2, Array3};
 use phyllo_contract::{Contract, PostprocessDefaults, NUM_CLASSES};
 use serde::{Deserialize, Serialize};
-
-use crate::votes::{vote_centres, VoteParams};
 
 /// The three heads of a Panoptic-DeepLab model for one image (or one stitched canvas).
 #[derive(Debug, Clone)]
@@ -63,37 +58,11 @@ pub struct PostprocessParams {
     /// body; instances apart from the plant's body are dropped (0: keep all).
     /// See [`crate::attachment`].
     pub attach_radius: u32,
-    /// Offset votes that confirm a centre the heatmap missed (0: off).
-    /// See [`crate::votes`].
-    pub vote_min: u32,
-    /// Smallest heatmap value at a vote-confirmed centre.
-    pub vote_min_heat: f32,
-    /// Smallest distance from a vote-confirmed centre to any other centre,
-    /// in output pixels.
-    pub vote_min_distance: f32,
-}
-
-impl PostprocessParams {
-    /// The vote-confirmation part of these parameters.
-    pub fn votes(&self) -> VoteParams {
-        VoteParams {
-            min_votes: self.vote_min,
-            min_heat: self.vote_min_heat,
-            min_distance: self.vote_min_distance,
-        }
-    }
 }
 
 /// Default [`PostprocessParams::attach_radius`]: 3 output pixels, 24 pixels
 /// of the full 2454x2056 camera frame.
 pub const DEFAULT_ATTACH_RADIUS: u32 = 3;
-
-/// Default [`PostprocessParams::vote_min`]: off until calibrated.
-pub const DEFAULT_VOTE_MIN: u32 = 0;
-/// Default [`PostprocessParams::vote_min_heat`].
-pub const DEFAULT_VOTE_MIN_HEAT: f32 = 0.05;
-/// Default [`PostprocessParams::vote_min_distance`]: about one centre sigma.
-pub const DEFAULT_VOTE_MIN_DISTANCE: f32 = 4.0;
 
 impl From<&PostprocessDefaults> for PostprocessParams {
     fn from(d: &PostprocessDefaults) -> Self {
@@ -103,9 +72,6 @@ impl From<&PostprocessDefaults> for PostprocessParams {
             top_k: d.top_k,
             min_leaf_area: d.min_leaf_area,
             attach_radius: DEFAULT_ATTACH_RADIUS,
-            vote_min: DEFAULT_VOTE_MIN,
-            vote_min_heat: DEFAULT_VOTE_MIN_HEAT,
-            vote_min_distance: DEFAULT_VOTE_MIN_DISTANCE,
         }
     }
 }
@@ -248,14 +214,7 @@ pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParam
         }
     }
 
-    let mut centres = find_centres(&out.center, params);
-    if params.vote_min > 0 {
-        let thing: Vec<bool> = semantic.iter().map(|&c| contract.is_thing(c)).collect();
-        let extra = vote_centres(&out.center, &thing, off, &centres, &params.votes());
-        let room = params.top_k.saturating_sub(centres.len());
-        centres.extend(extra.into_iter().take(room));
-        centres.sort_by(|a, b| b.2.total_cmp(&a.2).then((a.0, a.1).cmp(&(b.0, b.1))));
-    }
+    let centres = find_centres(&out.center, params);
     let mut instance = vec![0u32; n];
     let k = centres.len();
     let mut class_votes = vec![[0u32; NUM_CLASSES]; k];
@@ -365,8 +324,6 @@ mod tests {
             top_k: 10,
             min_leaf_area: 1,
             attach_radius: 0,
-            vote_min: 0,
-            ..PostprocessParams::default()
         }
     }
 

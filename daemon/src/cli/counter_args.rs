@@ -3,10 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use phyllo_inference::postprocess::{
-    PostprocessParams, DEFAULT_ATTACH_RADIUS, DEFAULT_VOTE_MIN, DEFAULT_VOTE_MIN_DISTANCE,
-    DEFAULT_VOTE_MIN_HEAT,
-};
+use phyllo_inference::postprocess::{PostprocessParams, DEFAULT_ATTACH_RADIUS};
 use phyllo_inference::region::RegionMode;
 use phyllo_inference::CounterConfig;
 
@@ -52,17 +49,6 @@ pub struct CounterArgs {
     /// per neighbourhood, in output pixels, odd (default: the contract's).
     #[arg(long, value_name = "PIXELS", value_parser = parse_nms_kernel)]
     pub nms_kernel: Option<u32>,
-    /// Post-processing: offset votes within a pixel that make a centre the
-    /// heatmap missed (0: off; default: off).
-    #[arg(long, value_name = "VOTES", default_value_t = DEFAULT_VOTE_MIN)]
-    pub vote_min: u32,
-    /// Post-processing: smallest heatmap value at a vote-made centre.
-    #[arg(long, value_name = "VALUE", default_value_t = DEFAULT_VOTE_MIN_HEAT)]
-    pub vote_min_heat: f32,
-    /// Post-processing: smallest distance from a vote-made centre to any
-    /// other, in output pixels.
-    #[arg(long, value_name = "PIXELS", default_value_t = DEFAULT_VOTE_MIN_DISTANCE)]
-    pub vote_min_distance: f32,
 }
 
 impl CounterArgs {
@@ -74,9 +60,6 @@ impl CounterArgs {
             min_leaf_area: self.min_leaf_area.unwrap_or(defaults.min_leaf_area),
             center_threshold: self.center_threshold.unwrap_or(defaults.center_threshold),
             nms_kernel: self.nms_kernel.unwrap_or(defaults.nms_kernel),
-            vote_min: self.vote_min,
-            vote_min_heat: self.vote_min_heat,
-            vote_min_distance: self.vote_min_distance,
             ..defaults
         };
         Ok(CounterConfig {
