@@ -13,17 +13,21 @@ test=${2:-/work/data/test-s900002}
 dev=${PHYLLO_DEV_DATA:-$root/../shared/data/unl-maize-dev}
 bin=$root/target/release/phyllo
 cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
-row() { # label, then phyllo eval arguments
-  local label=$1
-  shift
-  local out
+sets=$root/models/eval-sets.tsv
+row() { # label, key in models/eval-sets.tsv, then phyllo eval arguments
+  local label=$1 key=$2
+  shift 2
+  local out got want check
   out=$("$bin" eval --threads "${THREADS:-2}" --model "$model" "$@" 2>/dev/null)
-  echo "$out" | awk -v l="$label" '/^\| images/ {getline; getline; sub(/^\|/, ""); print "| " l " |" $0; exit}'
+  got=$(echo "$out" | awk '/^data / {print $2; exit}')
+  want=$(awk -F'\t' -v k="$key" '$1 == k {print $2; exit}' "$sets")
+  if [ "$got" = "$want" ]; then check="$got (as recorded)"; else check="$got (DIFFERS from ${want:-nothing recorded}: not comparable with models/MODEL.md)"; fi
+  echo "$out" | awk -v l="$label" -v c="$check" '/^\| images/ {getline; getline; sub(/^\|/, ""); print "| " l " |" $0 " " c " |"; exit}'
 }
 echo "model: $("$bin" eval --threads 1 --model "$model" --counts "$dev/leaf_tips.csv" --images "$dev/images" 2>/dev/null | awk '/^model/ {print $2; exit}')"
 echo
-echo "| set | n | exact | within ±1 | RMSE | MAE | bias | R² |"
-echo "|---|---:|---:|---:|---:|---:|---:|---:|"
-row "synthetic frames, $(basename "$test")" --dataset "$test" --split val
-row "real full frames" --counts "$dev/leaf_tips.csv" --images "$dev/images"
-row "real crops" --counts "$dev/crops_counts.csv" --images "$dev/crops"
+echo "| set | n | exact | within ±1 | RMSE | MAE | bias | R² | data (models/eval-sets.tsv) |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---|"
+row "synthetic frames, $(basename "$test")" "$(basename "$test")/val" --dataset "$test" --split val
+row "real full frames" real-frames --counts "$dev/leaf_tips.csv" --images "$dev/images"
+row "real crops" real-crops --counts "$dev/crops_counts.csv" --images "$dev/crops"

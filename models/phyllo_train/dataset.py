@@ -72,7 +72,8 @@ class PanopticDataset(Dataset):
     """
 
     def __init__(self, root: str | Path, split: str | None = "train", aug: AugmentConfig | None = None,
-                 contract: Contract | None = None, seed: int = 0, limit: int | None = None):
+                 contract: Contract | None = None, seed: int = 0, limit: int | None = None,
+                 small_center_weight: float = 1.0):
         self.root = Path(root)
         self.contract = contract or load_contract()
         self.rows = read_manifest(self.root, split)[: limit]
@@ -81,6 +82,7 @@ class PanopticDataset(Dataset):
         self.aug = aug or AugmentConfig.none()
         self.seed = seed
         self.epoch = 0
+        self.small_center_weight = small_center_weight
 
     def set_epoch(self, epoch: int) -> None:
         """Change the augmentation stream (call once per epoch)."""
@@ -105,7 +107,7 @@ class PanopticDataset(Dataset):
         rgb, label, window = augment(img, label, cfg, rng, top_view=is_top_view(row),
                                      label_divisor=self.contract.label_divisor,
                                      zoom=(self.contract.zoom_plant_height, self.contract.max_zoom))
-        t = make_targets(label, self.contract, window=window)
+        t = make_targets(label, self.contract, window=window, small_center_weight=self.small_center_weight)
         target = {
             "semantic": torch.from_numpy(t.semantic),
             "semantic_weight": torch.from_numpy(t.semantic_weight),

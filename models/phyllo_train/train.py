@@ -3,7 +3,8 @@
     python -m phyllo_train.train --data DIR --out RUN_DIR [--steps N | --epochs E] [--crop 256] [--device cpu|cuda]
 
 RUN_DIR gets ``last.pt`` (every ``--ckpt-every`` steps and at the end),
-``best.pt`` (lowest validation loss), ``log.jsonl`` and ``args.json``.
+``best.pt`` (lowest validation loss), ``log.jsonl`` and ``args.json``, and with
+``--keep-every N`` a ``step-NNNNNN.pt`` every N steps.
 Re-running the same command resumes from ``last.pt``. Export with
 ``python -m phyllo_train.export --checkpoint RUN_DIR/best.pt --out models/NAME.onnx``.
 """
@@ -164,6 +165,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--warmup", type=int, default=200)
     ap.add_argument("--ema", type=float, default=0.999, help="EMA decay of weights used for val/export; 0 = off")
     ap.add_argument("--center-weight", type=float, default=200.0)
+    ap.add_argument("--small-center-weight", type=float, default=1.0,
+                    help="centre-loss weight within 2 sigma of small instances' centres (1 = off; "
+                         "validation always uses 1, so its loss stays comparable)")
     ap.add_argument("--offset-weight", type=float, default=0.01)
     ap.add_argument("--top-k", type=float, default=0.2)
     ap.add_argument("--instance-stride", type=int, default=4, choices=[2, 4],
@@ -185,6 +189,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--val-every", type=int, default=500)
     ap.add_argument("--ckpt-every", type=int, default=200)
     ap.add_argument("--log-every", type=int, default=10)
+    ap.add_argument("--keep-every", type=int, default=0,
+                    help="also keep RUN_DIR/step-NNNNNN.pt every N steps (0 = off), for scoring the run's "
+                         "course with scripts/score-checkpoints.sh")
     ap.add_argument("--init", type=Path, default=None,
                     help="start from this checkpoint's weights (fresh optimiser and schedule); ignored on resume")
     ap.add_argument("--no-resume", action="store_true", help="start afresh even if RUN_DIR/last.pt exists")
@@ -209,7 +216,8 @@ def main(argv: list[str] | None = None) -> int:
     aug = AugmentConfig(crop=args.crop or None)
     if not args.crop:
         aug.scale = (1.0, 1.0)  # full tiles: keep the contract's tile size exactly
-    train_sets = [PanopticDataset(d, "train", aug, contract, seed=args.seed, limit=args.limit) for d in args.data]
+    train_sets = [PanopticDataset(d, "train", aug, contract, seed=args.seed, limit=args.limit,
+                                  small_center_weight=args.small_center_weight) for d in args.data]
     train_ds = train_sets[0] if len(train_sets) == 1 else ConcatDataset(train_sets)
     val_ds = None
     if args.val_limit:
@@ -236,6 +244,8 @@ def main(argv: list[str] | None = None) -> int:
     training_data = describe_data(args.data) + (f" | {args.data_note}" if args.data_note else "")
     if args.center_sigma is not None:
         training_data += f" | centre sigma {args.center_sigma:g} output px"
+    if args.small_center_weight != 1.0:
+        training_data += f" | small-instance centre weight {args.small_center_weight:g}"
 
     step, best = 0, float("inf")
     last = args.out / "last.pt"
@@ -319,6 +329,8 @@ def main(argv: list[str] | None = None) -> int:
                 log.flush()
             if step % args.ckpt_every == 0 or step == total:
                 checkpoint(last)
+            if args.keep_every and step % args.keep_every == 0:
+                checkpoint(args.out / f"step-{step:06d}.pt")
             if val_ds is not None and (step % args.val_every == 0 or step == total):
                 res = evaluate(ema.module if ema is not None else model, val_ds, device, weights, args.batch)
                 if tty:

@@ -95,3 +95,22 @@ def test_crop_keeps_the_whole_instance_centre(contract):
     # The same leaf seen through the other half of the image agrees on where its centre is.
     t2 = make_targets(lab, contract, window=(0, 0, 64, 64))
     np.testing.assert_allclose(t2.centers[0, 1] - 32, cx, atol=1e-5)
+
+
+def test_small_centre_weight_covers_small_centres_only(contract):
+    lab = np.zeros((128, 128), np.int32)
+    lab[10:20, 4:40] = 1 * contract.label_divisor + 1    # 360 px: small
+    lab[60:120, 40:100] = 1 * contract.label_divisor + 2  # 3600 px: not small
+    plain = make_targets(lab, contract)
+    assert (plain.center_weight == 1.0).all()
+    t = make_targets(lab, contract, small_center_weight=5.0)
+    w = t.center_weight[0]
+    r = 2.0 * contract.center_sigma
+    (sy, sx), (by, bx) = np.rint(t.centers).astype(int)
+    assert w[sy, sx] == 5.0
+    gy, gx = np.mgrid[0:w.shape[0], 0:w.shape[1]]
+    near_small = (gy - sy) ** 2 + (gx - sx) ** 2 <= r * r
+    assert (w[near_small] == 5.0).all() and (w[~near_small] == 1.0).all()
+    assert w[by, bx] == 1.0
+    # The heatmap itself is the same; only its weight changes.
+    np.testing.assert_array_equal(t.center, plain.center)

@@ -27,6 +27,27 @@ fn evaluates_a_generated_dataset_against_its_labels() {
     assert!(out.status.success(), "{stderr}");
     let v: Value = serde_json::from_str(stdout.trim()).unwrap();
     assert_eq!(v["metrics"]["images"], 4);
+    // The same command elsewhere renders the same data, and the fingerprint
+    // says so: what makes a rerun comparable with a number in MODEL.md.
+    let again = tmp.path().join("again");
+    let (out, _, stderr) = run(Command::new(binary("phyllo-gen", "phyllo-gen"))
+        .args([
+            "dataset", "--plants", "2", "--seed", "77", "--views", "0,108", "--quiet", "--out",
+        ])
+        .arg(&again));
+    assert!(out.status.success(), "phyllo-gen: {stderr}");
+    let fingerprint = |dir: &std::path::Path| {
+        let (out, stdout, stderr) = run(phyllo()
+            .args(["eval", "--split", "all", "--json", "--model"])
+            .arg(untrained_model())
+            .arg("--dataset")
+            .arg(dir));
+        assert!(out.status.success(), "{stderr}");
+        let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+        v["fingerprint"].as_str().unwrap().to_string()
+    };
+    assert_eq!(v["fingerprint"].as_str().unwrap().len(), 16, "{v}");
+    assert_eq!(fingerprint(&again), v["fingerprint"].as_str().unwrap());
     assert!(
         v["mean_iou"].as_f64().is_some() && v["panoptic_quality"].as_f64().is_some(),
         "{v}"
@@ -129,6 +150,11 @@ fn evaluates_real_images_with_human_counts() {
     assert!(out.status.success(), "{stderr}");
     let v: Value = serde_json::from_str(stdout.trim()).unwrap();
     assert_eq!(v["metrics"]["images"], 10);
+    assert_eq!(
+        v["fingerprint"].as_str(),
+        Some(recorded_fingerprint("real-frames").as_str()),
+        "the development frames or their counts changed: models/eval-sets.tsv no longer names them"
+    );
     assert!(v["per_view"]["SV_108"]["images"] == 10, "{v}");
     let confusion_total: u64 = v["confusion"]
         .as_array()
@@ -201,4 +227,17 @@ fn real_frames_with_marked_tips_get_a_tip_table() {
         let drawn = image::open(overlays.path().join(&name)).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(drawn.width(), image::image_dimensions(file).unwrap().0, "{name}");
     }
+}
+
+/// The fingerprint `models/eval-sets.tsv` records for a set.
+fn recorded_fingerprint(set: &str) -> String {
+    let path = phyllo_e2e::repo_root().join("models/eval-sets.tsv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    text.lines()
+        .filter(|l| !l.starts_with('#'))
+        .find_map(|l| {
+            let mut cols = l.split('\t');
+            (cols.next() == Some(set)).then(|| cols.next().unwrap_or("").to_string())
+        })
+        .unwrap_or_else(|| panic!("{} has no row {set:?}", path.display()))
 }

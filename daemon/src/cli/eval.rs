@@ -11,6 +11,7 @@ use serde_json::json;
 
 use super::count::{overlay_path, render_overlay};
 use super::counter_args::CounterArgs;
+use crate::evaluation::fingerprint::Fingerprint;
 use crate::evaluation::leaf_errors::LeafErrors;
 use crate::evaluation::metrics::{confusion, confusion_table, per_view, CountMetrics, CountPair};
 use crate::evaluation::segmentation::{panoptic_quality, LeafMatch, Overlaps, PixelMap};
@@ -82,6 +83,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut tip_errors = TipErrors::new(args.tip_radius);
     let mut tip_outcomes: Vec<(String, TipOutcome)> = Vec::new();
     let mut failed = Vec::new();
+    let mut fingerprint = Fingerprint::default();
     // The title names the source in full; a plot's caption has room for the
     // folder's name only.
     let (title, caption);
@@ -100,9 +102,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 let bytes = std::fs::read(&item.image)
                     .with_context(|| format!("cannot read {}", item.image.display()))?;
                 let analysis = counter.analyse_bytes(&item.image, &bytes)?;
-                let label = image::open(&item.label)
-                    .with_context(|| format!("cannot read label {}", item.label.display()))?
+                let label_bytes = std::fs::read(&item.label)
+                    .with_context(|| format!("cannot read label {}", item.label.display()))?;
+                let label = image::load_from_memory(&label_bytes)
+                    .with_context(|| format!("cannot decode label {}", item.label.display()))?
                     .into_luma16();
+                fingerprint.add(&item.name, &[&bytes, &label_bytes]);
                 let (w, h) = (label.width() as usize, label.height() as usize);
                 if [w as u32, h as u32] != analysis.result.image_size {
                     bail!(
@@ -145,6 +150,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             let outcome = (|| -> anyhow::Result<(u32, Option<TipOutcome>)> {
                 let bytes = std::fs::read(&hc.image)
                     .with_context(|| format!("cannot read {}", hc.image.display()))?;
+                let name = hc.image.file_name().map(|f| f.to_string_lossy().into_owned());
+                let truth = format!("{} {:?}", hc.count, hc.tips);
+                fingerprint.add(&name.unwrap_or_default(), &[&bytes, truth.as_bytes()]);
                 let analysis = counter.analyse_bytes(&hc.image, &bytes)?;
                 let Some(tips) = &hc.tips else {
                     return Ok((analysis.result.leaf_count, None));
@@ -200,6 +208,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         let mut v = json!({
             "model": counter.model_id(),
             "source": title,
+            "fingerprint": fingerprint.hex(),
             "metrics": metrics,
             "per_view": views,
             "confusion": conf,
@@ -226,6 +235,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         println!("model    {}", counter.model_id());
         println!("source   {title}");
+        println!(
+            "data     {} ({} items read; sha256 of names, files and truths, models/MODEL.md records each set's)",
+            fingerprint.hex(),
+            fingerprint.items()
+        );
         if args.per_image {
             for p in &pairs {
                 println!(

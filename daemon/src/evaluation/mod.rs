@@ -2,6 +2,7 @@
 //! labels and on real images with human counts, through the same inference
 //! path as the daemon.
 
+pub mod fingerprint;
 pub mod leaf_errors;
 pub mod metrics;
 pub mod plots;

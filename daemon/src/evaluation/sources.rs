@@ -8,6 +8,8 @@ use anyhow::{bail, Context};
 /// One image of a phyllo-gen dataset.
 #[derive(Debug, Clone)]
 pub struct DatasetItem {
+    /// The image's path as the manifest gives it, relative to the data set.
+    pub name: String,
     /// RGB image.
     pub image: PathBuf,
     /// Panoptic label (16-bit PNG, contract encoding).
@@ -34,8 +36,10 @@ pub fn read_manifest(dir: &Path, split: Option<&str>) -> anyhow::Result<Vec<Data
         if split.is_some_and(|s| field("split").ok().as_deref() != Some(s)) {
             continue;
         }
+        let name = field("image")?;
         items.push(DatasetItem {
-            image: dir.join(field("image")?),
+            image: dir.join(&name),
+            name,
             label: dir.join(field("label")?),
             view: field("view").unwrap_or_else(|_| "?".into()),
         });

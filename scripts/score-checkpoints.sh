@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Scores a training run's course: exports each kept checkpoint
+# (train.py --keep-every N writes RUN_DIR/step-NNNNNN.pt), plus an optional
+# starting checkpoint, and counts a phyllo-gen dataset with each, one table row
+# per checkpoint. Use a calibration set (models/MODEL.md), never the withheld
+# test set, to choose a checkpoint.
+# Usage: scripts/score-checkpoints.sh RUN_DIR DATASET [START_CHECKPOINT]
+# Checkpoints already scored are not exported again (RUN_DIR/scored/).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+usage="usage: score-checkpoints.sh RUN_DIR DATASET [START_CHECKPOINT]"
+run=$(cd "${1:?$usage}" && pwd)
+data=${2:?$usage}
+start=${3:-}
+py=${PYTHON:-$root/models/.venv/bin/python}
+bin=$root/target/release/phyllo
+cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
+mkdir -p "$run/scored"
+echo "| checkpoint | images | exact | within ±1 | RMSE | MAE | bias | R² |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|"
+for ck in $start "$run"/step-*.pt; do
+  [ -e "$ck" ] || continue
+  name=$(basename "$(dirname "$ck")")-$(basename "$ck" .pt)
+  onnx=$run/scored/$name.onnx
+  if [ ! -e "$onnx" ]; then
+    (cd "$root/models" && "$py" -m phyllo_train.export --checkpoint "$ck" --out "$onnx" --name "$name" >/dev/null)
+  fi
+  "$bin" eval --threads "${THREADS:-2}" --model "$onnx" --dataset "$data" --split all 2>/dev/null |
+    awk -v l="$name" '/^\| images/ {getline; getline; sub(/^\|/, ""); print "| " l " |" $0; exit}'
+done
