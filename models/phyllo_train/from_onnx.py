@@ -113,16 +113,25 @@ def load_folded(model: PhylloNet, path: str | Path, contract: Contract) -> int:
 
 
 def calibrate_bn(model: PhylloNet, batches: list[torch.Tensor]) -> None:
-    """Re-expresses every BatchNorm around its inputs' statistics on ``batches``; eval output is unchanged."""
+    """Re-expresses every BatchNorm around its inputs' statistics on ``batches``; eval output is unchanged.
+
+    The statistics are what BatchNorm itself would keep from these batches: the
+    mean of the batch means and the mean of the *per-batch* variances. The
+    variance over all pixels at once is larger by the spread of the batch means
+    (a crop of white wall against one of leaves), and a network re-expressed
+    around it would amplify every normalised activation in training mode by
+    that ratio, so the first fine-tuning steps would train a different
+    function from the shipped one.
+    """
     sums: dict[nn.BatchNorm2d, list[torch.Tensor]] = {}
 
     def record(mod: nn.BatchNorm2d, inputs: tuple[torch.Tensor, ...], _out: torch.Tensor) -> None:
         z = inputs[0].detach().double()
         acc = sums.setdefault(mod, [torch.zeros(z.shape[1], dtype=torch.float64),
                                     torch.zeros(z.shape[1], dtype=torch.float64), torch.zeros((), dtype=torch.float64)])
-        acc[0] += z.sum(dim=(0, 2, 3))
-        acc[1] += (z * z).sum(dim=(0, 2, 3))
-        acc[2] += z.shape[0] * z.shape[2] * z.shape[3]
+        acc[0] += z.mean(dim=(0, 2, 3))
+        acc[1] += z.var(dim=(0, 2, 3), unbiased=False)
+        acc[2] += 1
 
     bns = [m for m in model.modules() if isinstance(m, nn.BatchNorm2d)]
     hooks = [m.register_forward_hook(record) for m in bns]
@@ -138,9 +147,9 @@ def calibrate_bn(model: PhylloNet, batches: list[torch.Tensor]) -> None:
         for bn in bns:
             if bn not in sums:
                 continue
-            s, ss, n = sums[bn]
+            s, vs, n = sums[bn]
             mean = s / n
-            var = (ss / n - mean * mean).clamp_min(0.0)
+            var = (vs / n).clamp_min(0.0)
             # Current eval map: (z - m0) / sqrt(v0 + eps) * g0 + b0 = a*z + c.
             a = bn.weight.double() / torch.sqrt(bn.running_var.double() + bn.eps)
             c = bn.bias.double() - a * bn.running_mean.double()
@@ -151,12 +160,16 @@ def calibrate_bn(model: PhylloNet, batches: list[torch.Tensor]) -> None:
             bn.bias.copy_((a * mean + c).float())
 
 
-def calibration_batches(data: Path, contract: Contract, images: int, batch: int = 4, seed: int = 0) -> list[torch.Tensor]:
-    """Training-style crops (the train split's augmentation) of ``images`` images from ``data``."""
+def calibration_batches(data: Path, contract: Contract, images: int, batch: int = 3, seed: int = 0,
+                        crop: int = 448) -> list[torch.Tensor]:
+    """Training-style crops (the train split's augmentation) of ``images`` images from ``data``.
+
+    Use the fine-tuning run's batch size and crop: BatchNorm's statistics are per batch.
+    """
     from .augment import AugmentConfig
     from .dataset import PanopticDataset
 
-    ds = PanopticDataset(data, "train", AugmentConfig(), contract, seed=seed, limit=images)
+    ds = PanopticDataset(data, "train", AugmentConfig(crop=crop), contract, seed=seed, limit=images)
     xs = [ds[i][0] for i in range(len(ds))]
     return [torch.stack(xs[i:i + batch]) for i in range(0, len(xs), batch)]
 
@@ -173,7 +186,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("onnx", type=Path, help="an ONNX file exported by phyllo_train.export (stride-4 instance heads)")
     ap.add_argument("--out", type=Path, required=True, help="checkpoint to write (.pt), usable as --init")
     ap.add_argument("--calibrate", type=Path, default=None, help="a phyllo-gen dataset whose train images set the BatchNorm statistics")
-    ap.add_argument("--images", type=int, default=64, help="images for --calibrate")
+    ap.add_argument("--images", type=int, default=96, help="images for --calibrate")
+    ap.add_argument("--batch", type=int, default=3, help="calibration batch size: the fine-tuning run's --batch")
+    ap.add_argument("--crop", type=int, default=448, help="calibration crop side: the fine-tuning run's --crop")
     ap.add_argument("--contract", default=None, help="contract.toml (default: models/contract.toml)")
     args = ap.parse_args(argv)
 
@@ -185,7 +200,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"from_onnx: {e}", file=sys.stderr)
         return 2
     if args.calibrate is not None:
-        calibrate_bn(model, calibration_batches(args.calibrate, contract, args.images))
+        calibrate_bn(model, calibration_batches(args.calibrate, contract, args.images, batch=args.batch,
+                                                crop=args.crop))
     try:
         diff = max_ort_difference(model, args.onnx, contract)
     except AssertionError as e:

@@ -115,6 +115,15 @@ def save_atomic(obj: dict, path: Path) -> None:
     os.replace(tmp, path)
 
 
+def set_train_mode(model: torch.nn.Module, freeze_bn: bool) -> None:
+    """Training mode; with ``freeze_bn`` every BatchNorm stays in eval mode (running statistics, no updates)."""
+    model.train()
+    if freeze_bn:
+        for m in model.modules():
+            if isinstance(m, torch.nn.modules.batchnorm._BatchNorm):
+                m.eval()
+
+
 @torch.no_grad()
 def evaluate(model: torch.nn.Module, ds: PanopticDataset, device: torch.device, w: LossWeights,
              batch: int) -> dict[str, float]:
@@ -180,6 +189,12 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--center-sigma", type=float, default=None,
                     help="centre heatmap Gaussian sigma in output px (default: the contract's); "
                          "training only, the decoder never reads it")
+    ap.add_argument("--zoom-height", type=int, default=None,
+                    help="small-plant zoom height for training samples, model rows (default: the contract's "
+                         "zoom_plant_height; phyllo-s10-cpu was trained at 320, before the contract's 480)")
+    ap.add_argument("--freeze-bn", action="store_true",
+                    help="keep BatchNorm statistics fixed (eval mode) while training: for fine-tuning with "
+                         "small batches, where batch statistics make training mode a different function")
     ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     ap.add_argument("--threads", type=int, default=2, help="torch intra-op threads (CPU)")
     ap.add_argument("--workers", type=int, default=1, help="data loader worker processes")
@@ -207,6 +222,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.center_sigma <= 0:
             raise SystemExit(f"--center-sigma must be positive, got {args.center_sigma}")
         contract = dataclasses.replace(contract, center_sigma=args.center_sigma)
+    if args.zoom_height is not None:
+        if args.zoom_height < 0:
+            raise SystemExit(f"--zoom-height must be 0 (off) or positive, got {args.zoom_height}")
+        contract = dataclasses.replace(contract, zoom_plant_height=args.zoom_height)
     seed_everything(args.seed)
     device = torch.device(args.device)
     if device.type == "cpu":
@@ -244,6 +263,10 @@ def main(argv: list[str] | None = None) -> int:
     training_data = describe_data(args.data) + (f" | {args.data_note}" if args.data_note else "")
     if args.center_sigma is not None:
         training_data += f" | centre sigma {args.center_sigma:g} output px"
+    if args.zoom_height is not None:
+        training_data += f" | training zoom height {args.zoom_height} rows"
+    if args.freeze_bn:
+        training_data += " | BatchNorm statistics frozen"
     if args.small_center_weight != 1.0:
         training_data += f" | small-instance centre weight {args.small_center_weight:g}"
 
@@ -287,7 +310,7 @@ def main(argv: list[str] | None = None) -> int:
 
     log = open(args.out / "log.jsonl", "a", encoding="utf-8")
     tty = sys.stdout.isatty()
-    model.train()
+    set_train_mode(model, args.freeze_bn)
     run_avg: dict[str, float] = {}
     t_last, imgs_since = time.perf_counter(), 0
     t_start = time.perf_counter()
@@ -333,6 +356,7 @@ def main(argv: list[str] | None = None) -> int:
                 checkpoint(args.out / f"step-{step:06d}.pt")
             if val_ds is not None and (step % args.val_every == 0 or step == total):
                 res = evaluate(ema.module if ema is not None else model, val_ds, device, weights, args.batch)
+                set_train_mode(model, args.freeze_bn)
                 if tty:
                     print()
                 print("val: " + " ".join(f"{k[4:]} {v:.4f}" for k, v in res.items()), flush=True)

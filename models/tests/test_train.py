@@ -36,3 +36,39 @@ def test_stride2_instance_branch_from_stride4_checkpoint(tiny_dataset, tmp_path,
     assert export.main(["--checkpoint", str(s2 / "last.pt"), "--out", str(out), "--check-size", "64"]) == 0
     meta = {p.key: p.value for p in onnx.load(str(out)).metadata_props}
     assert "centre sigma 2.5" in meta["phyllo.training_data"]
+
+
+def test_frozen_batchnorm_trains_the_eval_function(tiny_dataset, tmp_path, contract):
+    import torch
+
+    from phyllo_train.model import build_model
+
+    model = build_model(contract.num_classes, seed=3)
+    x = torch.randn(2, 3, 64, 64)
+    train.set_train_mode(model, freeze_bn=True)
+    with torch.no_grad():
+        frozen = model(x)[1]
+    model.eval()
+    with torch.no_grad():
+        want = model(x)[1]
+    torch.testing.assert_close(frozen, want)
+    # Without the freeze, training mode normalises by the batch: another function.
+    train.set_train_mode(model, freeze_bn=False)
+    with torch.no_grad():
+        assert not torch.allclose(model(x)[1], want)
+
+    base = tmp_path / "base"
+    common = ["--data", str(tiny_dataset), "--crop", "64", "--batch", "2", "--workers", "0",
+              "--val-limit", "1", "--val-every", "1", "--log-every", "1", "--warmup", "1", "--steps", "2"]
+    assert train.main(common + ["--out", str(base)]) == 0
+    run = tmp_path / "frozen"
+    assert train.main(common + ["--out", str(run), "--init", str(base / "last.pt"), "--freeze-bn",
+                                "--small-center-weight", "4", "--zoom-height", "320", "--keep-every", "1"]) == 0
+    before = torch.load(base / "last.pt", weights_only=False)["raw_model"]
+    after = torch.load(run / "last.pt", weights_only=False)
+    stats = [k for k in before if k.endswith("running_mean") or k.endswith("running_var")]
+    assert stats and all(torch.equal(before[k], after["raw_model"][k]) for k in stats)
+    assert (run / "step-000001.pt").exists() and (run / "step-000002.pt").exists()
+    note = after["training_data"]
+    assert "BatchNorm statistics frozen" in note and "small-instance centre weight 4" in note
+    assert "training zoom height 320" in note
