@@ -19,7 +19,8 @@
 # Environment (defaults in brackets): PLANTS [1200], SEED [100: no training or
 # test set uses it], PRESETS [the stage-4 mix, a fifth maize], STEPS [4000],
 # BATCH [16], CROP [512], LR [1e-4], DEVICE [cuda], WORKERS [14],
-# INIT [.device/init.pt], TRAIN_ARGS [--small-center-weight 8],
+# INIT [.device/init.pt], TRAIN_ARGS [--freeze-bn; models/MODEL.md, "Why every
+# fine-tune of s10 lost", says what --small-center-weight does to each set],
 # OUT_DIR [$OUT], WORK [/tmp/phyllo-device], PYTHON [python3], GEN [.device/phyllo-gen].
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -58,7 +59,7 @@ t1=$(date +%s)
   --init "$init" --steps "$steps" --lr "${LR:-1e-4}" --warmup 100 --crop "${CROP:-512}" \
   --batch "${BATCH:-16}" --device "${DEVICE:-cuda}" --workers "${WORKERS:-14}" \
   --val-every "$keep" --ckpt-every "$keep" --keep-every "$keep" --log-every 50 --seed "$seed" \
-  ${TRAIN_ARGS:---small-center-weight 8} \
+  ${TRAIN_ARGS---freeze-bn} \
   --data-note "scripts/device-train.sh: phyllo-gen dataset --plants $plants --seed $seed --preset $presets")
 echo "device-train: trained in $(( $(date +%s) - t1 )) s"
 
