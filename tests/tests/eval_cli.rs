@@ -10,12 +10,7 @@ use serde_json::Value;
 fn evaluates_a_generated_dataset_against_its_labels() {
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("ds");
-    let (out, _, stderr) = run(Command::new(binary("phyllo-gen", "phyllo-gen"))
-        .args([
-            "dataset", "--plants", "2", "--seed", "77", "--views", "0,108", "--quiet", "--out",
-        ])
-        .arg(&data));
-    assert!(out.status.success(), "phyllo-gen: {stderr}");
+    generate_seed_77(&data);
     let plots = tmp.path().join("plots");
     let (out, stdout, stderr) = run(phyllo()
         .args(["eval", "--split", "all", "--json", "--per-image", "--model"])
@@ -30,12 +25,7 @@ fn evaluates_a_generated_dataset_against_its_labels() {
     // The same command elsewhere renders the same data, and the fingerprint
     // says so: what makes a rerun comparable with a number in MODEL.md.
     let again = tmp.path().join("again");
-    let (out, _, stderr) = run(Command::new(binary("phyllo-gen", "phyllo-gen"))
-        .args([
-            "dataset", "--plants", "2", "--seed", "77", "--views", "0,108", "--quiet", "--out",
-        ])
-        .arg(&again));
-    assert!(out.status.success(), "phyllo-gen: {stderr}");
+    generate_seed_77(&again);
     let fingerprint = |dir: &std::path::Path| {
         let (out, stdout, stderr) = run(phyllo()
             .args(["eval", "--split", "all", "--json", "--model"])
@@ -240,4 +230,14 @@ fn recorded_fingerprint(set: &str) -> String {
             (cols.next() == Some(set)).then(|| cols.next().unwrap_or("").to_string())
         })
         .unwrap_or_else(|| panic!("{} has no row {set:?}", path.display()))
+}
+
+/// Two plants of seed 77, two views each, into `dir`.
+fn generate_seed_77(dir: &std::path::Path) {
+    let (out, _, stderr) = run(Command::new(binary("phyllo-gen", "phyllo-gen"))
+        .args([
+            "dataset", "--plants", "2", "--seed", "77", "--views", "0,108", "--quiet", "--out",
+        ])
+        .arg(dir));
+    assert!(out.status.success(), "phyllo-gen: {stderr}");
 }

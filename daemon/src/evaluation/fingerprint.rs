@@ -42,55 +42,31 @@ impl Fingerprint {
 mod tests {
     use super::*;
 
+    fn digest(items: &[(&str, &[u8], &[u8])]) -> String {
+        let mut f = Fingerprint::default();
+        for (name, image, label) in items {
+            f.add(name, &[image, label]);
+        }
+        assert_eq!(f.items(), items.len());
+        f.hex()
+    }
+
     #[test]
     fn same_items_same_digest_and_any_change_shows() {
-        let build = |items: &[(&str, &[u8], &[u8])]| {
-            let mut f = Fingerprint::default();
-            for (name, a, b) in items {
-                f.add(name, &[a, b]);
-            }
-            f
-        };
-        let base = build(&[
-            ("images/p0_0.png", b"img0", b"lab0"),
-            ("images/p0_36.png", b"img1", b"lab1"),
-        ]);
-        assert_eq!(base.items(), 2);
-        assert_eq!(base.hex().len(), 16);
-        assert_eq!(
-            base.hex(),
-            build(&[
-                ("images/p0_0.png", b"img0", b"lab0"),
-                ("images/p0_36.png", b"img1", b"lab1")
-            ])
-            .hex()
-        );
-        // One byte of one label.
-        assert_ne!(
-            base.hex(),
-            build(&[
-                ("images/p0_0.png", b"img0", b"lab0"),
-                ("images/p0_36.png", b"img1", b"lab2")
-            ])
-            .hex()
-        );
-        // The same bytes split differently between image and label.
-        assert_ne!(
-            base.hex(),
-            build(&[
-                ("images/p0_0.png", b"img0l", b"ab0"),
-                ("images/p0_36.png", b"img1", b"lab1")
-            ])
-            .hex()
-        );
-        // Order.
-        assert_ne!(
-            base.hex(),
-            build(&[
-                ("images/p0_36.png", b"img1", b"lab1"),
-                ("images/p0_0.png", b"img0", b"lab0")
-            ])
-            .hex()
-        );
+        let (a, b) = ("images/p0_0.png", "images/p0_36.png");
+        let base = digest(&[(a, b"img0", b"lab0"), (b, b"img1", b"lab1")]);
+        assert_eq!(base.len(), 16);
+        assert_eq!(base, digest(&[(a, b"img0", b"lab0"), (b, b"img1", b"lab1")]));
+        let changed = [
+            // one byte of one label
+            digest(&[(a, b"img0", b"lab0"), (b, b"img1", b"lab2")]),
+            // the same bytes split differently between image and label
+            digest(&[(a, b"img0l", b"ab0"), (b, b"img1", b"lab1")]),
+            // order
+            digest(&[(b, b"img1", b"lab1"), (a, b"img0", b"lab0")]),
+        ];
+        for c in changed {
+            assert_ne!(base, c);
+        }
     }
 }
