@@ -140,6 +140,10 @@ pub struct OutputSpec {
     pub offset: String,
     /// Sigma of the Gaussian centre target, in output pixels.
     pub center_sigma: f32,
+    /// Name of the optional leaf-tip heatmap output (models with a tip head).
+    pub tip: String,
+    /// Sigma of the Gaussian tip target, in output pixels.
+    pub tip_sigma: f32,
 }
 
 /// Default post-processing parameters.
@@ -154,6 +158,10 @@ pub struct PostprocessDefaults {
     pub top_k: usize,
     /// Smallest leaf instance counted, in output pixels.
     pub min_leaf_area: u32,
+    /// Minimum tip heatmap value of a leaf tip.
+    pub tip_threshold: f32,
+    /// Max-pool kernel side for tip NMS, in output pixels (odd).
+    pub tip_nms_kernel: u32,
 }
 
 /// Keys of the ONNX metadata the contract stamps into models.
@@ -223,6 +231,9 @@ impl Contract {
         }
         if self.postprocess.nms_kernel.is_multiple_of(2) {
             return invalid("nms_kernel must be odd".into());
+        }
+        if self.postprocess.tip_nms_kernel.is_multiple_of(2) {
+            return invalid("tip_nms_kernel must be odd".into());
         }
         Ok(())
     }

@@ -90,25 +90,29 @@ def plant_zoom(label: np.ndarray, label_divisor: int, plant_height: int, max_zoo
 
 
 def _window_around_plant(img: Image.Image, label: np.ndarray, label_divisor: int,
-                         margin: int) -> tuple[Image.Image, np.ndarray]:
-    """The plant's bounding box grown by ``margin`` px, clipped to the image."""
+                         margin: int) -> tuple[Image.Image, np.ndarray, tuple[int, int]]:
+    """The plant's bounding box grown by ``margin`` px, clipped to the image, and its origin (x0, y0)."""
     ys, xs = np.nonzero(label >= label_divisor)
     h, w = label.shape
     y0, y1 = max(int(ys.min()) - margin, 0), min(int(ys.max()) + 1 + margin, h)
     x0, x1 = max(int(xs.min()) - margin, 0), min(int(xs.max()) + 1 + margin, w)
-    return img.crop((x0, y0, x1, y1)), label[y0:y1, x0:x1]
+    return img.crop((x0, y0, x1, y1)), label[y0:y1, x0:x1], (x0, y0)
 
 
-def _pad_to(img: np.ndarray, lab: np.ndarray, size: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Pad to at least ``size`` per side with the edge colour (the chamber's wall) and background label."""
+def _pad_to(img: np.ndarray, lab: np.ndarray, size: int,
+            rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+    """Pad to at least ``size`` per side with the edge colour (the chamber's wall) and background label.
+
+    Also returns the (left, top) padding, by which points move.
+    """
     h, w = lab.shape
     if h >= size and w >= size:
-        return img, lab
+        return img, lab, (0, 0)
     ph, pw = max(0, size - h), max(0, size - w)
     top, left = int(rng.integers(0, ph + 1)), int(rng.integers(0, pw + 1))
     img = np.pad(img, ((top, ph - top), (left, pw - left), (0, 0)), mode="edge")
     lab = np.pad(lab, ((top, ph - top), (left, pw - left)), mode="constant")
-    return img, lab
+    return img, lab, (left, top)
 
 
 def _crop_origin(lab: np.ndarray, size: int, rng: np.random.Generator, fg_p: float) -> tuple[int, int]:
@@ -202,12 +206,15 @@ def photometric(img: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
 
 def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
             top_view: bool = False, label_divisor: int = 1000,
-            zoom: tuple[int, float] = (0, 1.0)) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]]:
+            zoom: tuple[int, float] = (0, 1.0), points: np.ndarray | None = None,
+            ) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int], np.ndarray]:
     """Augment an RGB PIL image and its (H, W) label.
 
-    Returns ``(rgb, label, window)``: the uint8 crop (size x size x 3), the
-    *whole* geometrically transformed label, and the crop window
-    ``(y0, x0, h, w)`` within it. Targets are computed from the whole label so
+    Returns ``(rgb, label, window, points)``: the uint8 crop (size x size x 3), the
+    *whole* geometrically transformed label, the crop window
+    ``(y0, x0, h, w)`` within it, and ``points`` ((K, 2) ``(x, y)``, pixel
+    (i, j) spanning [i, i+1) x [j, j+1); leaf tips) moved with the label
+    into its coordinates (empty when none are given). Targets are computed from the whole label so
     that instances cut by the crop keep the centre of the whole instance, as
     the daemon's tile stitching expects. ``zoom`` is the contract's
     ``(zoom_plant_height, max_zoom)``: a small plant is enlarged as the
@@ -215,22 +222,31 @@ def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.ran
     """
     lo, hi = cfg.scale
     f = float(np.exp(rng.uniform(np.log(lo), np.log(hi)))) if hi > lo else 1.0
+    pts = np.zeros((0, 2), np.float64) if points is None else np.array(points, np.float64).reshape(-1, 2)
     z = plant_zoom(label, label_divisor, *zoom)
     if z > 1.0:
         # Only the plant's surroundings are enlarged: a whole frame at 3x
         # would make every target costly, and the chamber far from the plant
         # is seen in unzoomed samples anyway.
-        img, label = _window_around_plant(img, label, label_divisor, margin=(cfg.crop or 256) // 2)
+        img, label, origin = _window_around_plant(img, label, label_divisor, margin=(cfg.crop or 256) // 2)
+        pts -= origin
+    if abs(z * f - 1.0) >= 1e-3:
+        pts *= z * f  # _rescale samples output pixel i at input (i + 0.5) / f
     img, label = _rescale(img, label, z * f)
     arr = np.asarray(img.convert("RGB"))
     if rng.random() < cfg.hflip:
         arr, label = arr[:, ::-1], label[:, ::-1]
+        pts[:, 0] = label.shape[1] - pts[:, 0]
     if top_view and cfg.rot90_top:
         k = int(rng.integers(0, 4))
-        arr, label = np.rot90(arr, k), np.rot90(label, k)
+        for _ in range(k):
+            # np.rot90 once: new[i, j] = old[j, w - 1 - i], so (x, y) -> (y, w - x).
+            pts = np.stack([pts[:, 1], label.shape[1] - pts[:, 0]], axis=1)
+            arr, label = np.rot90(arr), np.rot90(label)
     size = cfg.crop if cfg.crop is not None else min(label.shape)
-    arr, label = _pad_to(arr, label, size, rng)
+    arr, label, (left, top) = _pad_to(arr, label, size, rng)
+    pts += (left, top)
     y0, x0 = _crop_origin(label, size, rng, cfg.fg_crop)
     plant = label[y0:y0 + size, x0:x0 + size] >= label_divisor  # class >= 1: leaf, stem or panicle
     arr = photometric(np.ascontiguousarray(arr[y0:y0 + size, x0:x0 + size]), cfg, rng, plant)
-    return arr, np.ascontiguousarray(label), (y0, x0, size, size)
+    return arr, np.ascontiguousarray(label), (y0, x0, size, size), pts

@@ -40,6 +40,8 @@ class Contract:
     center_name: str
     offset_name: str
     center_sigma: float
+    tip_name: str
+    tip_sigma: float
     meta_contract_version: str
     meta_model_name: str
     meta_trained: str
@@ -55,6 +57,11 @@ class Contract:
     def output_names(self) -> tuple[str, str, str]:
         """ONNX output names in the order the network returns them."""
         return (self.semantic_name, self.center_name, self.offset_name)
+
+    @property
+    def output_names_with_tip(self) -> tuple[str, str, str, str]:
+        """Output names of a model with the optional leaf-tip head (:mod:`phyllo_train.tips`)."""
+        return (*self.output_names, self.tip_name)
 
 
 def _parse(raw: dict) -> Contract:
@@ -84,6 +91,8 @@ def _parse(raw: dict) -> Contract:
         center_name=out["center"],
         offset_name=out["offset"],
         center_sigma=float(out["center_sigma"]),
+        tip_name=out.get("tip", "tip"),
+        tip_sigma=float(out.get("tip_sigma", 1.5)),
         meta_contract_version=meta["contract_version"],
         meta_model_name=meta["model_name"],
         meta_trained=meta["trained"],

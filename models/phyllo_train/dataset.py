@@ -12,7 +12,7 @@ from torch.utils.data import Dataset
 
 from .augment import AugmentConfig, augment
 from .contract import Contract, load_contract
-from .targets import make_targets
+from .targets import make_targets, tip_heatmap
 
 REQUIRED_KEYS = ("image", "label", "split")
 
@@ -73,7 +73,7 @@ class PanopticDataset(Dataset):
 
     def __init__(self, root: str | Path, split: str | None = "train", aug: AugmentConfig | None = None,
                  contract: Contract | None = None, seed: int = 0, limit: int | None = None,
-                 small_center_weight: float = 1.0):
+                 small_center_weight: float = 1.0, with_tips: bool = False):
         self.root = Path(root)
         self.contract = contract or load_contract()
         self.rows = read_manifest(self.root, split)[: limit]
@@ -83,6 +83,12 @@ class PanopticDataset(Dataset):
         self.seed = seed
         self.epoch = 0
         self.small_center_weight = small_center_weight
+        self.with_tips = with_tips
+        if with_tips:
+            missing = [r["image"] for r in self.rows if "leaf_tips" not in r]
+            if missing:
+                raise ValueError(f"{self.root / 'manifest.jsonl'}: {len(missing)} rows have no leaf_tips "
+                                 f"(first: {missing[0]}); render the set with a phyllo-gen that writes them")
 
     def set_epoch(self, epoch: int) -> None:
         """Change the augmentation stream (call once per epoch)."""
@@ -104,9 +110,11 @@ class PanopticDataset(Dataset):
         if cfg.crop is None:
             # Full tiles: crop back to the original size so H, W stay multiples of 32.
             cfg = AugmentConfig(**{**cfg.__dict__, "crop": min(label.shape) // 32 * 32})
-        rgb, label, window = augment(img, label, cfg, rng, top_view=is_top_view(row),
-                                     label_divisor=self.contract.label_divisor,
-                                     zoom=(self.contract.zoom_plant_height, self.contract.max_zoom))
+        tips = np.array(list(row.get("leaf_tips", {}).values()), np.float64).reshape(-1, 2)
+        rgb, label, window, tips = augment(img, label, cfg, rng, top_view=is_top_view(row),
+                                           label_divisor=self.contract.label_divisor,
+                                           zoom=(self.contract.zoom_plant_height, self.contract.max_zoom),
+                                           points=tips)
         t = make_targets(label, self.contract, window=window, small_center_weight=self.small_center_weight)
         target = {
             "semantic": torch.from_numpy(t.semantic),
@@ -116,4 +124,6 @@ class PanopticDataset(Dataset):
             "offset": torch.from_numpy(t.offset),
             "offset_weight": torch.from_numpy(t.offset_weight),
         }
+        if self.with_tips:
+            target["tip"] = torch.from_numpy(tip_heatmap(tips, window, self.contract.stride, self.contract.tip_sigma))
         return torch.from_numpy(normalise(rgb, self.contract)), target

@@ -26,14 +26,20 @@ OPSET = 17
 
 
 def export_onnx(model: torch.nn.Module, out: str | Path, contract: Contract, *, model_name: str,
-                trained: bool, training_data: str, extra_meta: dict[str, str] | None = None) -> Path:
-    """Write ``model`` to ``out`` as ONNX (opset 17, dynamic N/H/W) with phyllo metadata."""
+                trained: bool, training_data: str, extra_meta: dict[str, str] | None = None,
+                output_names: tuple[str, ...] | None = None) -> Path:
+    """Write ``model`` to ``out`` as ONNX (opset 17, dynamic N/H/W) with phyllo metadata.
+
+    ``output_names`` default to the contract's three; a model with the leaf-tip
+    head passes ``contract.output_names_with_tip``.
+    """
+    names = tuple(output_names or contract.output_names)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     model = model.eval().cpu()
     dummy = torch.zeros(1, 3, contract.tile, contract.tile)
     axes = {contract.input_name: {0: "N", 2: "H", 3: "W"}}
-    for name in contract.output_names:
+    for name in names:
         # Named separately from the input's: they are H/stride, W/stride.
         axes[name] = {0: "N", 2: "H_out", 3: "W_out"}
     with warnings.catch_warnings():
@@ -42,7 +48,7 @@ def export_onnx(model: torch.nn.Module, out: str | Path, contract: Contract, *, 
         warnings.simplefilter("ignore")
         torch.onnx.export(
             model, (dummy,), str(out), dynamo=False, opset_version=OPSET,
-            input_names=[contract.input_name], output_names=list(contract.output_names),
+            input_names=[contract.input_name], output_names=list(names),
             dynamic_axes=axes, do_constant_folding=True,
         )
     proto = onnx.load(str(out))
@@ -67,7 +73,8 @@ def export_onnx(model: torch.nn.Module, out: str | Path, contract: Contract, *, 
 
 
 def check_onnx(path: str | Path, model: torch.nn.Module, contract: Contract, *, atol: float = 1e-3,
-               seed: int = 0, size: int | None = None) -> dict[str, float]:
+               seed: int = 0, size: int | None = None,
+               output_names: tuple[str, ...] | None = None) -> dict[str, float]:
     """Check names, dynamic axes and metadata, and that ORT matches PyTorch; returns max abs errors.
 
     Runs a batch of 2 square ``size`` tiles (default: the contract's tile) and one
@@ -75,10 +82,11 @@ def check_onnx(path: str | Path, model: torch.nn.Module, contract: Contract, *, 
     """
     import onnxruntime as ort
 
+    names = tuple(output_names or contract.output_names)
     proto = onnx.load(str(path))
     ins = [i.name for i in proto.graph.input]
     outs = [o.name for o in proto.graph.output]
-    if ins != [contract.input_name] or outs != list(contract.output_names):
+    if ins != [contract.input_name] or outs != list(names):
         raise AssertionError(f"graph names {ins} -> {outs} differ from the contract")
     dims = [d.dim_param or d.dim_value for d in proto.graph.input[0].type.tensor_type.shape.dim]
     if dims != ["N", 3, "H", "W"]:
@@ -98,10 +106,10 @@ def check_onnx(path: str | Path, model: torch.nn.Module, contract: Contract, *, 
     t = size or contract.tile
     for shape in ((2, 3, t, t), (1, 3, t - 64 if t > 64 else 2 * t, t + 64)):
         x = rng.standard_normal(shape, dtype=np.float32)
-        got = sess.run(list(contract.output_names), {contract.input_name: x})
+        got = sess.run(list(names), {contract.input_name: x})
         with torch.no_grad():
             want = [w.numpy() for w in model(torch.from_numpy(x))]
-        for name, g, w in zip(contract.output_names, got, want):
+        for name, g, w in zip(names, got, want):
             exp_shape = (shape[0], w.shape[1], shape[2] // contract.stride, shape[3] // contract.stride)
             if g.shape != exp_shape or w.shape != exp_shape:
                 raise AssertionError(f"{name}: ORT {g.shape}, torch {w.shape}, expected {exp_shape}")

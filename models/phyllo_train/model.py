@@ -192,6 +192,13 @@ class PhylloNet(nn.Module):
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """x: normalised NCHW float32, H and W multiples of 32."""
+        return self.heads(*self.features(x))
+
+    def features(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Encoder and shared decoder: (stem features at stride 2, decoder features at stride 4).
+
+        Extra heads (the leaf-tip head of :mod:`phyllo_train.tips`) read these too.
+        """
         f2 = self.stem(x)
         f4 = self.s4(f2)
         f8 = self.s8(f4)
@@ -200,7 +207,10 @@ class PhylloNet(nn.Module):
         d = self.aspp(f32)
         d = self.up16(d, f16)
         d = self.up8(d, f8)
-        d4 = self.up4(d, f4)
+        return f2, self.up4(d, f4)
+
+    def heads(self, f2: torch.Tensor, d4: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Semantic, centre and offset heads on :meth:`features`' outputs."""
         sem = self.sem_head(self.sem_up2(d4, f2))
         ins = self.ins(d4)
         if self.ins_up2 is not None:

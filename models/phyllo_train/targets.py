@@ -148,3 +148,20 @@ def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, in
         instances=instances,
         centers=np.array(centers, dtype=np.float32).reshape(-1, 2),
     )
+
+
+def tip_heatmap(points: np.ndarray, window: tuple[int, int, int, int], stride: int, sigma: float) -> np.ndarray:
+    """(1, h, w) leaf-tip target of a crop: unit Gaussians at the tips, at output resolution.
+
+    ``points`` are (K, 2) ``(x, y)`` in the whole label's continuous pixel
+    coordinates (pixel (i, j) spans [i, i+1) x [j, j+1)), as
+    :func:`phyllo_train.augment.augment` returns them; ``window`` is its
+    ``(y0, x0, h, w)`` crop. Output pixel i covers input pixels
+    ``s*i .. s*i+s-1``, so input coordinate x lands at ``x / s - 0.5``.
+    Tips just outside the crop still leave their tails in it.
+    """
+    y0, x0, ch, cw = window
+    pts = np.asarray(points, np.float64).reshape(-1, 2)
+    yx = np.stack([(pts[:, 1] - y0) / stride - 0.5, (pts[:, 0] - x0) / stride - 0.5], axis=1)
+    heat = gaussian_heatmap((ch // stride, cw // stride), np.rint(yx).astype(np.int64), sigma)
+    return heat[None]

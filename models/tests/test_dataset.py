@@ -129,7 +129,7 @@ def test_zoom_enlarges_small_plants_as_the_daemon_does():
 
     img = Image.fromarray(np.full((514, 614, 3), 230, np.uint8))
     cfg = AugmentConfig.none(crop=256)
-    _, out, _ = augment(img, lab, cfg, np.random.default_rng(0), zoom=(320, 2.0))
+    _, out, _, _ = augment(img, lab, cfg, np.random.default_rng(0), zoom=(320, 2.0))
     # Both leaves are twice as large, and the instance ids survive.
     assert (out == 1001).sum() == 4 * (lab == 1001).sum()
     assert (out == 1002).sum() == 4 * (lab == 1002).sum()

@@ -1,0 +1,251 @@
+"""A leaf-tip head on a trained network's frozen features, its training and its export.
+
+    python -m phyllo_train.tips train --base models/phyllo.onnx --data DIR [--data DIR2] --out RUN_DIR
+    python -m phyllo_train.tips export --base models/phyllo.onnx --head RUN_DIR/last.pt --out MODEL.onnx
+
+Human annotators count a leaf by marking its tip (``leaf_tips.csv`` of the
+real development set is exactly that). The Panoptic-DeepLab centre of a leaf
+is its centre of mass, and the centres of young leaves in the whorl lie close
+together on the stem, where the network merges them; their tips fan out.
+The tip head reads the shipped network's features (stem at stride 2,
+decoder at stride 4), which stay frozen: the exported model's semantic,
+centre and offset outputs are exactly the base model's, and only a fourth
+output, ``tip`` (the contract's ``[outputs] tip``), is added. Training it
+costs a forward pass of the base plus a small head, so it fits a CPU session.
+
+The target is a unit Gaussian (``tip_sigma``) at each visible leaf's
+apparent tip (phyllo-gen's ``leaf_tips``); the loss is CenterNet's
+penalty-reduced focal loss, which keeps peaks sharp where an MSE blurs them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import onnx
+import torch
+from torch import nn
+from torch.utils.data import ConcatDataset, DataLoader
+
+from .augment import AugmentConfig
+from .contract import Contract, load_contract
+from .dataset import PanopticDataset
+from .export import check_onnx, export_onnx
+from .from_onnx import load_folded
+from .model import FuseUp, PhylloNet, SepConv, build_model, count_parameters
+
+
+class TipHead(nn.Module):
+    """Decoder features (stride 4) fused with stem features (stride 2) into one tip logit map at stride 2."""
+
+    def __init__(self, c_dec: int = 32, c_stem: int = 16, width: int = 32):
+        super().__init__()
+        self.fuse = FuseUp(c_dec, c_stem, width)
+        # A dilated second conv widens the view along the leaf: a tip is where a blade ends.
+        self.refine = nn.Sequential(SepConv(width, width), SepConv(width, width, dilation=2))
+        self.out = nn.Conv2d(width, 1, 1)
+        # Start near "no tip anywhere" (CenterNet's prior of 0.1 % positives), so early
+        # steps are not spent unlearning a grey heatmap.
+        nn.init.normal_(self.out.weight, std=1e-3)
+        nn.init.constant_(self.out.bias, -4.6)
+
+    def forward(self, f2: torch.Tensor, d4: torch.Tensor) -> torch.Tensor:
+        """Tip logits ``[N, 1, H/2, W/2]``."""
+        return self.out(self.refine(self.fuse(d4, f2)))
+
+
+class TipNet(nn.Module):
+    """The base network's three outputs plus the tip heatmap (sigmoid, in [0, 1])."""
+
+    def __init__(self, base: PhylloNet, head: TipHead):
+        super().__init__()
+        self.base = base
+        self.head = head
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """x: normalised NCHW float32, H and W multiples of 32."""
+        f2, d4 = self.base.features(x)
+        return (*self.base.heads(f2, d4), torch.sigmoid(self.head(f2, d4)))
+
+
+def tip_focal_loss(logits: torch.Tensor, target: torch.Tensor, alpha: float = 2.0, beta: float = 4.0) -> torch.Tensor:
+    """CenterNet's penalty-reduced focal loss (Zhou et al., 2019), normalised by the number of tips.
+
+    ``target`` peaks are exactly 1 (targets.gaussian_heatmap); pixels near a
+    peak are penalised less for firing, by ``(1 - target) ** beta``.
+    """
+    p = torch.sigmoid(logits).clamp(1e-4, 1 - 1e-4)
+    pos = target.ge(1.0 - 1e-6).float()
+    pos_loss = -torch.log(p) * (1 - p) ** alpha * pos
+    neg_loss = -torch.log(1 - p) * p ** alpha * (1 - target) ** beta * (1 - pos)
+    return (pos_loss.sum() + neg_loss.sum()) / pos.sum().clamp_min(1.0)
+
+
+def load_base(path: str | Path, contract: Contract) -> PhylloNet:
+    """The network of an exported ONNX file, rebuilt in PyTorch (eval mode, exact; see ``from_onnx``)."""
+    base = build_model(contract.num_classes, seed=0)
+    load_folded(base, path, contract)
+    return base.eval()
+
+
+def count_peaks(heat: torch.Tensor, threshold: float, kernel: int) -> torch.Tensor:
+    """Tip peaks per image of a ``[N, 1, H, W]`` heatmap: local maxima over ``kernel`` above ``threshold``."""
+    pooled = nn.functional.max_pool2d(heat, kernel, stride=1, padding=kernel // 2)
+    return ((heat >= pooled) & (heat > threshold)).flatten(1).sum(1)
+
+
+def _loader(dirs: list[Path], split: str, aug: AugmentConfig, contract: Contract, batch: int, seed: int,
+            workers: int, shuffle: bool, limit: int | None = None) -> tuple[DataLoader, list[PanopticDataset]]:
+    sets = [PanopticDataset(d, split=split, aug=aug, contract=contract, seed=seed, limit=limit, with_tips=True)
+            for d in dirs]
+    g = torch.Generator().manual_seed(seed)
+    loader = DataLoader(ConcatDataset(sets), batch_size=batch, shuffle=shuffle, num_workers=workers,
+                        drop_last=shuffle, generator=g, persistent_workers=workers > 0)
+    return loader, sets
+
+
+def evaluate(base: PhylloNet, head: TipHead, loader: DataLoader, contract: Contract) -> dict[str, float]:
+    """Mean focal loss and the tip-count error of the crops (peaks vs. tips in the target) on ``loader``."""
+    head.eval()
+    losses, errs = [], []
+    thr, k = contract.raw["postprocess"]["tip_threshold"], contract.raw["postprocess"]["tip_nms_kernel"]
+    with torch.no_grad():
+        for x, t in loader:
+            logits = head(*base.features(x))
+            losses.append(float(tip_focal_loss(logits, t["tip"])))
+            want = t["tip"].ge(1.0 - 1e-6).flatten(1).sum(1)
+            errs.append((count_peaks(torch.sigmoid(logits), thr, k) - want).float())
+    head.train()
+    e = torch.cat(errs) if errs else torch.zeros(1)
+    return {"val_loss": float(np.mean(losses)) if losses else math.nan,
+            "val_count_mae": float(e.abs().mean()), "val_count_bias": float(e.mean())}
+
+
+def train(args: argparse.Namespace) -> int:
+    """Train the tip head; resumes from ``RUN_DIR/last.pt``."""
+    contract = load_contract(args.contract)
+    torch.manual_seed(args.seed)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    base = load_base(args.base, contract)
+    for p in base.parameters():
+        p.requires_grad_(False)
+    head = TipHead()
+    opt = torch.optim.AdamW(head.parameters(), lr=args.lr, weight_decay=1e-4)
+    args.out.mkdir(parents=True, exist_ok=True)
+    last = args.out / "last.pt"
+    step = 0
+    if last.exists():
+        ckpt = torch.load(last, map_location="cpu", weights_only=False)
+        head.load_state_dict(ckpt["head"])
+        opt.load_state_dict(ckpt["opt"])
+        step = int(ckpt["step"])
+        print(f"resuming {last} at step {step}", flush=True)
+    (args.out / "args.json").write_text(json.dumps({k: str(v) for k, v in vars(args).items()}, indent=1))
+    train_loader, train_sets = _loader(args.data, "train", AugmentConfig(crop=args.crop), contract, args.batch,
+                                       args.seed, args.workers, shuffle=True)
+    val_loader, _ = _loader(args.data, "val", AugmentConfig.none(crop=args.crop), contract, args.batch,
+                            args.seed, 0, shuffle=False, limit=args.val_images)
+    print(f"tip head: {count_parameters(head)} parameters on frozen {args.base}; "
+          f"{sum(len(s) for s in train_sets)} training images", flush=True)
+    log = open(args.out / "log.jsonl", "a", encoding="utf-8")
+    head.train()
+    t0, seen, epoch = time.time(), 0, step // max(len(train_loader), 1)
+    while step < args.steps:
+        for s in train_sets:
+            s.set_epoch(epoch)
+        for x, t in train_loader:
+            lr = args.lr * 0.5 * (1 + math.cos(math.pi * min(step / args.steps, 1.0)))
+            for grp in opt.param_groups:
+                grp["lr"] = lr
+            with torch.no_grad():
+                f2, d4 = base.features(x)
+            loss = tip_focal_loss(head(f2, d4), t["tip"])
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            step += 1
+            seen += x.shape[0]
+            if step % args.log_every == 0:
+                rate = seen / (time.time() - t0)
+                print(f"step {step}/{args.steps} loss {float(loss):.4f} lr {lr:.2e} {rate:.1f} img/s", flush=True)
+            done = step >= args.steps
+            if step % args.ckpt_every == 0 or done:
+                rec = {"step": step, "loss": float(loss), **evaluate(base, head, val_loader, contract)}
+                print(json.dumps(rec), flush=True)
+                log.write(json.dumps(rec) + "\n")
+                log.flush()
+                torch.save({"head": head.state_dict(), "opt": opt.state_dict(), "step": step,
+                            "base": str(args.base), "data": [str(d) for d in args.data]}, last)
+            if done:
+                break
+        epoch += 1
+    log.close()
+    return 0
+
+
+def build_tipnet(base_path: str | Path, head_path: str | Path, contract: Contract) -> TipNet:
+    """The base network of ``base_path`` (ONNX) with the tip head of a ``train`` checkpoint."""
+    head = TipHead()
+    head.load_state_dict(torch.load(head_path, map_location="cpu", weights_only=False)["head"])
+    return TipNet(load_base(base_path, contract), head).eval()
+
+
+def export(args: argparse.Namespace) -> int:
+    """Export base + tip head to ONNX with four outputs; checked against PyTorch by ONNX Runtime."""
+    contract = load_contract(args.contract)
+    net = build_tipnet(args.base, args.head, contract)
+    meta = {p.key: p.value for p in onnx.load(str(args.base)).metadata_props}
+    ckpt = torch.load(args.head, map_location="cpu", weights_only=False)
+    base_name = meta.get(contract.meta_model_name, "base")
+    data = (f"{meta.get(contract.meta_training_data, 'unknown')} || tip head ({ckpt['step']} steps): "
+            + ", ".join(Path(d).name for d in ckpt.get("data", [])))
+    names = contract.output_names_with_tip
+    path = export_onnx(net, args.out, contract, model_name=args.name or f"{base_name}-tips", trained=True,
+                       training_data=data, output_names=names,
+                       extra_meta={"phyllo.base_model": base_name, "phyllo.tip_head_steps": str(ckpt["step"])})
+    errs = check_onnx(path, net, contract, output_names=names, size=args.check_size)
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB, {count_parameters(net.head)} tip-head params on "
+          f"{base_name}); ORT vs torch max abs diff: " + ", ".join(f"{k}={v:.2e}" for k, v in errs.items()))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """CLI entry point."""
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.tips", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    tr = sub.add_parser("train", help="train the tip head on frozen features")
+    tr.add_argument("--base", type=Path, required=True, help="exported base model (ONNX), e.g. models/phyllo.onnx")
+    tr.add_argument("--data", type=Path, action="append", required=True, help="phyllo-gen dataset with leaf_tips (repeatable)")
+    tr.add_argument("--out", type=Path, required=True)
+    tr.add_argument("--steps", type=int, default=3000)
+    tr.add_argument("--batch", type=int, default=8)
+    tr.add_argument("--crop", type=int, default=384)
+    tr.add_argument("--lr", type=float, default=2e-3)
+    tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--workers", type=int, default=1)
+    tr.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
+    tr.add_argument("--log-every", type=int, default=20)
+    tr.add_argument("--ckpt-every", type=int, default=250)
+    tr.add_argument("--val-images", type=int, default=48, help="validation images per dataset")
+    tr.add_argument("--contract", default=None)
+    ex = sub.add_parser("export", help="export base + tip head to ONNX")
+    ex.add_argument("--base", type=Path, required=True)
+    ex.add_argument("--head", type=Path, required=True, help="RUN_DIR/last.pt of `train`")
+    ex.add_argument("--out", type=Path, required=True)
+    ex.add_argument("--name", default=None, help="phyllo.model_name (default: <base name>-tips)")
+    ex.add_argument("--check-size", type=int, default=256)
+    ex.add_argument("--contract", default=None)
+    args = ap.parse_args(argv)
+    return train(args) if args.cmd == "train" else export(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
