@@ -174,10 +174,10 @@ def train(args: argparse.Namespace) -> int:
             seen += x.shape[0]
             if step % args.log_every == 0:
                 rate = seen / (time.time() - t0)
-                print(f"step {step}/{args.steps} loss {float(loss):.4f} lr {lr:.2e} {rate:.1f} img/s", flush=True)
+                print(f"step {step}/{args.steps} loss {float(loss.detach()):.4f} lr {lr:.2e} {rate:.1f} img/s", flush=True)
             done = step >= args.steps
             if step % args.ckpt_every == 0 or done:
-                rec = {"step": step, "loss": float(loss), **evaluate(base, head, val_loader, contract)}
+                rec = {"step": step, "loss": float(loss.detach()), **evaluate(base, head, val_loader, contract)}
                 print(json.dumps(rec), flush=True)
                 log.write(json.dumps(rec) + "\n")
                 log.flush()

@@ -1,0 +1,160 @@
+"""The leaf-tip head: points through augmentation, tip targets, the loss, training and export."""
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import onnxruntime as ort
+import torch
+from PIL import Image
+
+from phyllo_train.augment import AugmentConfig, augment
+from phyllo_train.dataset import PanopticDataset
+from phyllo_train.export import export_onnx
+from phyllo_train.targets import tip_heatmap
+from phyllo_train.tips import TipHead, TipNet, count_peaks, load_base, main, tip_focal_loss
+
+MODELS = Path(__file__).resolve().parent.parent
+
+
+def _marked(h=300, w=360):
+    """A label with one-pixel 'tips' (instance ids 1..4) and their (x, y) points at the pixel centres."""
+    lab = np.zeros((h, w), np.int32)
+    lab[120:200, 150:160] = 2000  # a stem, so the plant has a body to zoom and crop around
+    pts = np.array([[40.5, 30.5], [300.5, 250.5], [170.5, 100.5], [10.5, 280.5]])
+    for k, (x, y) in enumerate(pts, 1):
+        lab[int(y), int(x)] = 1000 + k
+    return lab, pts
+
+
+def test_points_move_with_the_label_through_every_geometric_op():
+    """Scale, flip, top-view rotations, padding and zoom: each point stays on its labelled pixel."""
+    lab, pts = _marked()
+    img = Image.fromarray(np.zeros((*lab.shape, 3), np.uint8))
+    for seed in range(12):
+        cfg = AugmentConfig.none(crop=512)  # larger than the label: padding too
+        cfg.hflip, cfg.rot90_top = 0.5, True
+        # Integer scales keep every one-pixel mark (nearest neighbour) so it can be found again.
+        cfg.scale = (2.0, 2.0) if seed % 2 else (1.0, 1.0)
+        _, out, _, moved = augment(img, lab, cfg, np.random.default_rng(seed), top_view=seed % 3 == 0,
+                                   zoom=(0, 1.0))
+        for k, (x, y) in enumerate(moved, 1):
+            assert out[int(np.floor(y)), int(np.floor(x))] == 1000 + k, (seed, k, x, y)
+
+
+def test_points_follow_the_small_plant_zoom():
+    lab, pts = _marked()
+    img = Image.fromarray(np.zeros((*lab.shape, 3), np.uint8))
+    _, out, _, moved = augment(img, lab, AugmentConfig.none(crop=256), np.random.default_rng(0),
+                               zoom=(600, 2.0))
+    assert out.shape[0] > lab.shape[0]  # enlarged
+    for k, (x, y) in enumerate(moved, 1):
+        assert out[int(np.floor(y)), int(np.floor(x))] == 1000 + k
+
+
+def test_tip_heatmap_peaks_at_the_tip_in_output_pixels():
+    # Input pixel (x=41, y=21) lies in output pixel (20, 10) at stride 2.
+    heat = tip_heatmap(np.array([[41.5, 21.5], [500.0, 500.0]]), (0, 0, 64, 64), stride=2, sigma=1.5)
+    assert heat.shape == (1, 32, 32)
+    assert heat[0, 10, 20] == 1.0 and np.argmax(heat[0]) == 10 * 32 + 20
+    assert (heat == 1.0).sum() == 1  # the far tip leaves nothing in this crop
+    # A window moves the tip with it.
+    moved = tip_heatmap(np.array([[41.5, 21.5]]), (8, 16, 64, 64), stride=2, sigma=1.5)
+    assert moved[0, 6, 12] == 1.0
+
+
+def test_focal_loss_rewards_sharp_peaks():
+    target = torch.from_numpy(tip_heatmap(np.array([[33.0, 33.0]]), (0, 0, 64, 64), 2, 1.5))[None]
+    good = torch.where(target >= 1.0, torch.tensor(6.0), torch.tensor(-6.0))
+    blurred = torch.logit(target.clamp(0.02, 0.98))
+    silent = torch.full_like(target, -6.0)
+    lg, lb, ls = (float(tip_focal_loss(v, target)) for v in (good, blurred, silent))
+    assert lg < lb and lg < ls
+    assert count_peaks(torch.sigmoid(good), 0.3, 5).tolist() == [1]
+    assert count_peaks(torch.sigmoid(silent), 0.3, 5).tolist() == [0]
+
+
+def _with_tips(fixture: Path, tmp: Path) -> Path:
+    """A copy of the fixture whose manifest has leaf_tips: each leaf's rightmost-lowest pixel."""
+    root = tmp / "with-tips"
+    shutil.copytree(fixture, root)
+    rows = [json.loads(line) for line in (root / "manifest.jsonl").read_text().splitlines()]
+    for r in rows:
+        lab = np.array(Image.open(root / r["label"]), np.int64)
+        tips = {}
+        for v in np.unique(lab[(lab // 1000 == 1) & (lab % 1000 > 0)]):
+            ys, xs = np.nonzero(lab == v)
+            k = np.argmax(xs * 10000 + ys)
+            tips[str(v % 1000)] = [float(xs[k]) + 0.5, float(ys[k]) + 0.5]
+        r["leaf_tips"] = tips
+    (root / "manifest.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return root
+
+
+def test_dataset_gives_one_tip_peak_per_visible_leaf(tmp_path, tiny_dataset, contract):
+    root = _with_tips(tiny_dataset, tmp_path)
+    ds = PanopticDataset(root, "val", AugmentConfig.none(), contract, with_tips=True)
+    x, t = ds[0]
+    row = ds.rows[0]
+    assert len(row["leaf_tips"]) == row["visible_leaf_count"]
+    assert t["tip"].shape == (1, x.shape[1] // contract.stride, x.shape[2] // contract.stride)
+    # The same sample's geometry (the dataset seeds it with (seed, epoch, index)): the contract's
+    # zoom enlarges this small plant, so only the tips inside the crop give peaks.
+    img = Image.open(root / row["image"]).convert("RGB")
+    lab = np.array(Image.open(root / row["label"]), np.int32)
+    pts = np.array(list(row["leaf_tips"].values()))
+    _, _, (y0, x0, h, w), moved = augment(img, lab, AugmentConfig(**{**AugmentConfig.none().__dict__, "crop": 512}),
+                                          np.random.default_rng([0, 0, 0]), label_divisor=1000,
+                                          zoom=(contract.zoom_plant_height, contract.max_zoom), points=pts)
+    inside = ((moved[:, 0] >= x0) & (moved[:, 0] < x0 + w) & (moved[:, 1] >= y0) & (moved[:, 1] < y0 + h)).sum()
+    assert inside >= 1
+    assert int((t["tip"] >= 1.0).sum()) == inside
+
+
+def test_dataset_without_tips_is_refused_when_tips_are_asked_for(tiny_dataset, contract):
+    try:
+        PanopticDataset(tiny_dataset, "train", contract=contract, with_tips=True)
+    except ValueError as e:
+        assert "leaf_tips" in str(e)
+    else:
+        raise AssertionError("a manifest without leaf_tips was accepted")
+
+
+def test_training_then_export_keeps_the_base_outputs_exactly(tmp_path, tiny_dataset, contract):
+    """Two training steps on frozen features, then the 4-output export: the first three outputs
+    are the base model's, bit for bit up to ONNX Runtime's float noise, and the tip map is in [0, 1]."""
+    root = _with_tips(tiny_dataset, tmp_path)
+    run = tmp_path / "run"
+    assert main(["train", "--base", str(MODELS / "phyllo.onnx"), "--data", str(root), "--out", str(run),
+                 "--steps", "2", "--batch", "2", "--crop", "128", "--workers", "0", "--ckpt-every", "2",
+                 "--val-images", "1"]) == 0
+    log = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+    assert log[-1]["step"] == 2 and np.isfinite(log[-1]["val_loss"])
+    out = tmp_path / "tips.onnx"
+    assert main(["export", "--base", str(MODELS / "phyllo.onnx"), "--head", str(run / "last.pt"),
+                 "--out", str(out), "--check-size", "128"]) == 0
+    x = np.random.default_rng(0).standard_normal((1, 3, 128, 160), dtype=np.float32)
+    got = ort.InferenceSession(str(out)).run(None, {contract.input_name: x})
+    base = ort.InferenceSession(str(MODELS / "phyllo.onnx")).run(None, {contract.input_name: x})
+    assert len(got) == 4 and len(base) == 3
+    for g, b in zip(got, base):
+        np.testing.assert_allclose(g, b, atol=2e-4)
+    assert got[3].shape == (1, 1, 64, 80) and 0.0 <= got[3].min() and got[3].max() <= 1.0
+
+
+def test_frozen_base_is_the_onnx_model(contract):
+    base = load_base(MODELS / "phyllo.onnx", contract)
+    net = TipNet(base, TipHead()).eval()
+    x = torch.randn(1, 3, 64, 64)
+    with torch.no_grad():
+        four, three = net(x), base(x)
+    for a, b in zip(four[:3], three):
+        assert torch.equal(a, b)
+
+
+def test_export_of_a_three_output_model_is_unchanged(tmp_path, contract):
+    """export_onnx without output_names still writes the contract's three outputs."""
+    base = load_base(MODELS / "phyllo.onnx", contract)
+    p = export_onnx(base, tmp_path / "m.onnx", contract, model_name="t", trained=True, training_data="t")
+    assert [o.name for o in ort.InferenceSession(str(p)).get_outputs()] == list(contract.output_names)
