@@ -12,7 +12,7 @@
 
 use crate::plant::{growth::PlantTraits, preset::Preset, Plant};
 use crate::render::{self, look::Look, Quality, Scene, Stage, View};
-use crate::{png_io, rng, sampling};
+use crate::{png_io, rng, sampling, tips};
 use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
@@ -82,6 +82,13 @@ pub struct Row {
     /// Empty in datasets written before this field existed.
     #[serde(default)]
     pub generator: String,
+    /// Apparent tip of each visible leaf instance (keys as in `leaf_pixels`), as (x, y) in
+    /// the written image's pixels (pixel (i, j) spans [i, i+1) x [j, j+1)): the projected
+    /// end of the blade's midrib where the label shows that leaf at it, otherwise the centre
+    /// of the leaf's label pixel nearest to it (see [`crate::tips`]). Empty in datasets
+    /// written before this field existed.
+    #[serde(default)]
+    pub leaf_tips: std::collections::BTreeMap<u16, [f32; 2]>,
 }
 
 /// This build's `Row::generator` value.
@@ -236,6 +243,7 @@ fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) 
             )?;
         }
         let leaf_pixels = out.label.leaf_pixels();
+        let leaf_tips = tips::leaf_tips(&plant, &scene, &camera, window, &out.label);
         let row = Row {
             image,
             label,
@@ -252,6 +260,7 @@ fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) 
             crop: [window.x0, window.y0],
             frame: [camera.width, camera.height],
             generator: generator_id(),
+            leaf_tips,
         };
         png_io::write_atomic(
             &meta_path(&args.out, p, view),
@@ -261,4 +270,27 @@ fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) 
         bar.inc(1);
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_round_trip_and_older_rows_without_tips_still_parse() {
+        let old = r#"{"image":"images/p000000_108.png","label":"labels/p000000_108.png","plant":0,
+            "view":"108","preset":"tx3197","age_days":35.0,"leaf_count":8,"visible_leaf_count":3,
+            "leaves_emerged":8,"split":"train","seed":4,"leaf_pixels":{"1":10,"2":14,"3":29},
+            "crop":[81,2],"frame":[614,514]}"#;
+        let mut row: Row = serde_json::from_str(old).unwrap();
+        assert!(row.leaf_tips.is_empty() && row.generator.is_empty());
+        assert_eq!(row.leaf_pixels.len(), 3);
+        row.leaf_tips = [(1, [10.25, 3.5]), (2, [0.5, 511.5]), (3, [200.125, 17.0])].into();
+        let text = serde_json::to_string(&row).unwrap();
+        assert!(
+            text.contains(r#""leaf_tips":{"1":[10.25,3.5],"2":[0.5,511.5],"3":[200.125,17.0]}"#),
+            "{text}"
+        );
+        assert_eq!(serde_json::from_str::<Row>(&text).unwrap(), row);
+    }
 }

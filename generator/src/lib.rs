@@ -5,7 +5,8 @@
 //! The layout follows the pipeline: [`plant`] grows a plant and meshes it,
 //! [`render`] places it in the [`render::chamber`] and traces it into an RGB
 //! [`render::film`] plus a [`label`] image, and [`dataset`], [`sequence`] and
-//! [`bench`] drive whole runs from the [`cli`].
+//! [`bench`] drive whole runs from the [`cli`]. [`tips`] finds each visible
+//! leaf's apparent tip for the dataset manifest.
 
 pub mod bench;
 pub mod cli;
@@ -19,3 +20,4 @@ pub mod render;
 pub mod rng;
 pub mod sampling;
 pub mod sequence;
+pub mod tips;

@@ -5,6 +5,7 @@ use phyllo_contract::{Contract, LEAF};
 use phyllo_gen::dataset::{self, DatasetArgs, Row};
 use phyllo_gen::plant::{growth::PlantTraits, preset::Preset, Plant};
 use phyllo_gen::render::{self, look::Look, Quality, Scene, Stage, View, Window};
+use phyllo_gen::tips;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 use std::process::Command;
@@ -133,6 +134,21 @@ fn manifest_counts_match_labels_on_disk() {
         }
         assert_eq!(leaves.len(), r.visible_leaf_count, "{}", r.label);
         assert_eq!(leaves, r.leaf_pixels);
+        // Every visible leaf has a tip, on a pixel of its own in this image.
+        assert_eq!(
+            r.leaf_tips.keys().collect::<Vec<_>>(),
+            r.leaf_pixels.keys().collect::<Vec<_>>(),
+            "{}",
+            r.label
+        );
+        for (&k, t) in &r.leaf_tips {
+            assert!(
+                t[0] >= 0.0 && t[1] >= 0.0 && t[0] < 512.0 && t[1] < 512.0,
+                "{t:?}"
+            );
+            let v = label.get_pixel(t[0] as u32, t[1] as u32).0[0];
+            assert_eq!(c.decode_label(v), (LEAF, k), "{} leaf {k}: tip {t:?}", r.label);
+        }
     }
 }
 
@@ -496,4 +512,131 @@ fn full_frame_side_views_cover_the_whole_camera_frame() {
             assert_eq!(r.crop, [0, 0]);
         }
     }
+}
+
+/// Image position of a plant-space point in a rendered window.
+fn to_image(scene: &Scene, camera: &render::camera::Camera, window: Window, p: glam::Vec3) -> [f32; 2] {
+    let (x, y) = camera.project(scene.to_chamber(p)).unwrap();
+    [x - window.x0 as f32, y - window.y0 as f32]
+}
+
+fn dist(a: [f32; 2], b: [f32; 2]) -> f32 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
+}
+
+#[test]
+fn leaf_tips_lie_on_their_leaves_and_visible_tips_are_the_far_ends() {
+    let c = Contract::embedded();
+    let look = Look::facility();
+    let (mut visible, mut hidden, mut moved, mut on_tip) = (0, 0, 0, 0);
+    for (preset, seed, age) in [("btx623", 5, 35.0), ("sc301", 2, 45.0), ("maize", 3, 30.0)] {
+        let (plant, stage) = stage_for(preset, seed, age, &look);
+        for view in [View::Side(0.0), View::Side(72.0), View::Side(144.0), View::Top] {
+            let scene = Scene::new(&stage, &look, view);
+            let camera = render::camera_for(view, &look, 514);
+            // Side views: the frame's middle; top view: a crop off the frame
+            // origin, so the window offset matters.
+            let window = match view {
+                View::Top => Window {
+                    x0: 150,
+                    y0: 100,
+                    width: 320,
+                    height: 320,
+                },
+                _ => Window {
+                    x0: 100,
+                    y0: 0,
+                    width: 420,
+                    height: 514,
+                },
+            };
+            let (w, h) = (window.width as usize, window.height as usize);
+            let q = Quality { spp: 1, max_depth: 1 };
+            let out = render::render(&scene, &camera, &look, window, q, 1).unwrap();
+            let label = &out.label;
+            let tips = tips::leaf_tips(&plant, &scene, &camera, window, label);
+            let projected = tips::projected_tips(&plant, &scene, &camera, window);
+            let pixels = label.leaf_pixels();
+            assert_eq!(
+                tips.keys().collect::<Vec<_>>(),
+                pixels.keys().collect::<Vec<_>>(),
+                "{preset} {view:?}"
+            );
+            let in_image = |p: [f32; 2]| p[0] >= 0.0 && p[1] >= 0.0 && p[0] < w as f32 && p[1] < h as f32;
+            let holds = |p: [f32; 2], k: u16| {
+                in_image(p) && c.decode_label(label.data[p[1] as usize * w + p[0] as usize]) == (LEAF, k)
+            };
+            let centres = |k: u16| {
+                label
+                    .data
+                    .iter()
+                    .enumerate()
+                    .filter(move |(_, &v)| c.decode_label(v) == (LEAF, k))
+                    .map(move |(i, _)| [(i % w) as f32 + 0.5, (i / w) as f32 + 0.5])
+            };
+            for (&k, &t) in &tips {
+                let ctx = format!("{preset} {view:?} leaf {k}: tip {t:?}");
+                assert!(holds(t, k), "{ctx} is not on a pixel of its leaf");
+                let p = projected[&k].unwrap();
+                if t == p {
+                    on_tip += 1;
+                    assert!(holds(p, k), "{ctx}");
+                } else {
+                    // Moved: the projected tip's pixel does not show this
+                    // leaf, and no pixel of the leaf is nearer to it.
+                    moved += 1;
+                    assert!(!holds(p, k), "{ctx}: moved off its own pixel");
+                    assert_eq!(t.map(|x| x.fract()), [0.5, 0.5], "{ctx}: not a pixel centre");
+                    let d = dist(t, p);
+                    assert!(
+                        centres(k).all(|q| dist(q, p) >= d - 1e-3),
+                        "{ctx}: a nearer pixel exists"
+                    );
+                }
+                // Is the blade's tip itself in sight of the camera?
+                let tip = scene.to_chamber(plant.leaf_tip(k).unwrap());
+                let to_tip = tip - camera.position;
+                let blocked = scene
+                    .hit(camera.position, to_tip.normalize())
+                    .is_some_and(|hit| hit.t < to_tip.length() - 1e-3);
+                if blocked || !in_image(p) {
+                    hidden += 1;
+                    continue;
+                }
+                // A visible tip is the far end of its leaf: farther from the
+                // blade's base than the leaf's pixel centroid is (unless the
+                // leaf points at or away from the camera, its tip then
+                // projecting next to its base).
+                let g = plant
+                    .mesh
+                    .groups
+                    .iter()
+                    .find(|g| g.name == format!("leaf_{k:02}"))
+                    .unwrap();
+                let first = plant.mesh.tris[g.start..g.end]
+                    .iter()
+                    .flatten()
+                    .min()
+                    .copied()
+                    .unwrap() as usize;
+                // Middle vertex of the blade's first mesh row: the midrib's start.
+                let base = to_image(&scene, &camera, window, plant.mesh.positions[first + 3]);
+                if dist(p, base) < 20.0 {
+                    continue;
+                }
+                visible += 1;
+                let n = pixels[&k] as f32;
+                let centroid = centres(k).fold([0.0, 0.0], |s, q| [s[0] + q[0] / n, s[1] + q[1] / n]);
+                assert!(
+                    dist(t, base) > dist(centroid, base),
+                    "{ctx} is nearer the base {base:?} than the centroid {centroid:?}"
+                );
+            }
+        }
+    }
+    // Both kinds of tip, and both rules, are exercised.
+    assert!(
+        visible >= 30 && hidden >= 5 && moved >= 5 && on_tip >= 1,
+        "{visible} visible, {hidden} hidden, {moved} moved, {on_tip} on the projected tip"
+    );
 }

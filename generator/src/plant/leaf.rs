@@ -79,7 +79,9 @@ fn control_points(base: Vec3, out: Vec3, side: Vec3, traits: &LeafTraits, state:
     pts
 }
 
-/// Appends one leaf blade (class leaf, instance `instance`) to `mesh`.
+/// Appends one leaf blade (class leaf, instance `instance`) to `mesh` and
+/// returns its tip: the end of the midrib (u = 1), where the width profile
+/// is zero, so every vertex of the blade's last mesh row sits there.
 pub fn blade(
     mesh: &mut Mesh,
     traits: &LeafTraits,
@@ -87,7 +89,7 @@ pub fn blade(
     stem_radius: f32,
     instance: u16,
     material: u16,
-) {
+) -> Vec3 {
     let (s, c) = traits.azimuth.sin_cos();
     let out = Vec3::new(c, 0.0, s);
     let side0 = Vec3::new(-s, 0.0, c);
@@ -156,6 +158,7 @@ pub fn blade(
             senescence: local,
         }
     });
+    pts[BLADE_SEGMENTS]
 }
 
 /// Where a sheath sits and how it widens.

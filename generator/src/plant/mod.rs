@@ -30,6 +30,9 @@ pub struct Plant {
     pub state: PlantState,
     /// The mesh, leaves as groups `leaf_NN` with instance = NN.
     pub mesh: Mesh,
+    /// Blade tip (end of the midrib) of each living leaf in plant space:
+    /// entry `k` belongs to leaf instance `k + 1`.
+    pub leaf_tips: Vec<Vec3>,
 }
 
 impl Plant {
@@ -56,19 +59,20 @@ impl Plant {
                 sheath_material,
             );
         }
+        let mut leaf_tips = Vec::with_capacity(state.leaves.len());
         for (k, leaf) in state.leaves.iter().enumerate() {
             // Instances number the living leaves bottom to top, so a leaf keeps
             // its mask colour in every view of the same plant.
             let instance = (k + 1) as u16;
             mesh.begin_group(format!("leaf_{instance:02}"));
-            leaf::blade(
+            leaf_tips.push(leaf::blade(
                 &mut mesh,
                 &traits.leaves[leaf.rank],
                 leaf,
                 state.stem_radius,
                 instance,
                 materials::LEAF,
-            );
+            ));
         }
         if let Some((len, rad)) = state.panicle {
             mesh.begin_group("panicle");
@@ -79,7 +83,16 @@ impl Plant {
             traits: traits.clone(),
             state,
             mesh,
+            leaf_tips,
         }
+    }
+
+    /// Plant-space blade tip of leaf instance `instance` (1 = lowest living leaf).
+    pub fn leaf_tip(&self, instance: u16) -> Option<Vec3> {
+        usize::from(instance)
+            .checked_sub(1)
+            .and_then(|k| self.leaf_tips.get(k))
+            .copied()
     }
 
     /// Living leaves on the plant.
@@ -142,4 +155,53 @@ fn panicle(mesh: &mut Mesh, base: f32, length: f32, radius: f32) {
         material: materials::PANICLE,
         senescence: 0.0,
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use preset::Preset;
+
+    #[test]
+    fn each_recorded_leaf_tip_is_the_last_mesh_row_of_its_blade() {
+        for (name, seed, age) in [("btx623", 1, 35.0), ("sc301", 4, 20.0), ("maize", 2, 45.0)] {
+            let preset = Preset::load(name).unwrap();
+            let plant = Plant::build(&PlantTraits::sample(&preset, seed), age);
+            assert!(plant.leaf_count() >= 3, "{name}: {} leaves", plant.leaf_count());
+            assert_eq!(plant.leaf_tips.len(), plant.leaf_count());
+            for (k, &tip) in plant.leaf_tips.iter().enumerate() {
+                let instance = (k + 1) as u16;
+                assert_eq!(plant.leaf_tip(instance), Some(tip));
+                let g = plant
+                    .mesh
+                    .groups
+                    .iter()
+                    .find(|g| g.name == format!("leaf_{instance:02}"))
+                    .unwrap();
+                let verts: Vec<usize> = plant.mesh.tris[g.start..g.end]
+                    .iter()
+                    .flatten()
+                    .map(|&v| v as usize)
+                    .collect();
+                let (first, last) = (*verts.iter().min().unwrap(), *verts.iter().max().unwrap());
+                // Rows of 7 vertices, 129 rows: the highest vertex used closes
+                // the last row, and that whole row is the tip.
+                assert_eq!(last + 1 - first, 7 * (leaf::BLADE_SEGMENTS + 1));
+                for v in last - 6..=last {
+                    let d = (plant.mesh.positions[v] - tip).length();
+                    assert!(d < 1e-6, "{name} leaf {instance}: vertex {v} is {d} from the tip");
+                }
+                // The tip lies a leaf's length away from the blade base.
+                let base = plant.mesh.positions[first + 3];
+                let length = plant.state.leaves[k].length;
+                let chord = (tip - base).length();
+                assert!(
+                    chord > 0.2 * length && chord <= 1.05 * length + 1e-3,
+                    "{name} leaf {instance}: tip {chord} from base, length {length}"
+                );
+            }
+            assert_eq!(plant.leaf_tip(0), None);
+            assert_eq!(plant.leaf_tip(plant.leaf_count() as u16 + 1), None);
+        }
+    }
 }

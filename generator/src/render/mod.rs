@@ -150,6 +150,12 @@ impl<'a> Scene<'a> {
         }
     }
 
+    /// A plant-space point in chamber space: the turntable rotation of this view.
+    #[inline]
+    pub fn to_chamber(&self, p: Vec3) -> Vec3 {
+        self.to_world * p
+    }
+
     /// Closest plant/prop hit of a chamber-space ray.
     #[inline]
     pub fn hit(&self, o: Vec3, d: Vec3) -> Option<Hit> {
