@@ -153,6 +153,7 @@ mod tests {
             semantic,
             instance,
             segments: vec![seg(1), seg(2), seg(3)],
+            tips: None,
         };
         (pan, img)
     }

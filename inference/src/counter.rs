@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use image::RgbImage;
-use phyllo_contract::{Contract, LEAF};
+use phyllo_contract::Contract;
 use serde::{Deserialize, Serialize};
 
 use crate::attachment::keep_attached;
@@ -18,6 +18,7 @@ use crate::result::{CountResult, Instance, StageTimings};
 use crate::runtime;
 use crate::stitch::{stitch, TileOutputs};
 use crate::tiling::{batch_tensor, prepare, Canvas};
+use crate::tips::CountRule;
 use crate::zoom::{instances_height, Zoom};
 
 /// Slack around the plant's box, in model pixels, within which instance
@@ -151,6 +152,16 @@ impl Counter {
         self.model.info().id()
     }
 
+    /// The rule its counts follow: the configured one with a model that has
+    /// a tip output, [`CountRule::Centres`] without (see [`crate::tips`]).
+    pub fn count_rule(&self) -> CountRule {
+        if self.model.info().has_tips {
+            self.config.postprocess.count_rule
+        } else {
+            CountRule::Centres
+        }
+    }
+
     /// The configuration this counter runs with.
     pub fn config(&self) -> &CounterConfig {
         &self.config
@@ -199,7 +210,7 @@ impl Counter {
             }
         }
         let t = Instant::now();
-        let mut result = to_result(c, &pan, &canvas, img.dimensions());
+        let mut result = to_result(c, &pan, &canvas, img.dimensions(), &self.config.postprocess);
         result.tiles = tiles;
         timings.postprocess += ms(t);
         timings.total = timings.tile + timings.inference + timings.postprocess;
@@ -251,18 +262,30 @@ impl Counter {
             // model; an instance centred outside the plant's box is not a leaf.
             let s = f64::from(c.outputs.stride);
             let m = PLANT_MARGIN;
-            pan.retain(|seg| {
-                let (x, y) = (f64::from(seg.centre[0]) * s, f64::from(seg.centre[1]) * s);
+            let inside = |x: f64, y: f64| {
+                let (x, y) = (x * s, y * s);
                 x >= (x0 - m) as f64 && x < (x1 + m) as f64 && y >= (y0 - m) as f64 && y < (y1 + m) as f64
-            });
+            };
+            pan.retain(|seg| inside(f64::from(seg.centre[0]), f64::from(seg.centre[1])));
+            // The same holds for tips.
+            if let Some(tips) = pan.tips.as_mut() {
+                tips.retain(|t| inside(f64::from(t.x), f64::from(t.y)));
+            }
         }
         timings.postprocess += ms(t2);
         Ok((canvas, pan))
     }
 }
 
-/// Converts a canvas panoptic result into original-image instances.
-pub fn to_result(c: &Contract, pan: &Panoptic, canvas: &Canvas, size: (u32, u32)) -> CountResult {
+/// Converts a canvas panoptic result into original-image instances, counting
+/// leaves by `params`' count rule.
+pub fn to_result(
+    c: &Contract,
+    pan: &Panoptic,
+    canvas: &Canvas,
+    size: (u32, u32),
+    params: &PostprocessParams,
+) -> CountResult {
     let s = c.outputs.stride as f32;
     let px_area = (s / canvas.scale).powi(2);
     let clamp = |v: f32, max: u32| (v.round().max(0.0) as u32).min(max);
@@ -289,14 +312,24 @@ pub fn to_result(c: &Contract, pan: &Panoptic, canvas: &Canvas, size: (u32, u32)
             }
         })
         .collect();
+    let tips = pan
+        .tips
+        .iter()
+        .flatten()
+        .map(|t| {
+            let [x, y] = canvas.to_original((t.x as f32 + 0.5) * s, (t.y as f32 + 0.5) * s);
+            [x, y, t.score]
+        })
+        .collect();
     CountResult {
-        leaf_count: pan.count(LEAF) as u32,
+        leaf_count: pan.leaf_count(params.count_rule, params.tip_reach) as u32,
         instances,
         image_size: [size.0, size.1],
         region: canvas.region,
         scale: canvas.scale,
         tiles: canvas.tiles.len() as u32,
         ms: StageTimings::default(),
+        tips,
     }
 }
 

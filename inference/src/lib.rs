@@ -6,6 +6,9 @@
 //! decode ─► region ─► tiling ─► model (ONNX Runtime) ─► stitch ─► postprocess ─► attachment ─► CountResult
 //! ```
 //!
+//! With a model that has a leaf-tip output, [`tips`] counts leaves by their
+//! tips as well as by their centres.
+//!
 //! A small plant goes through the stages twice: [`zoom`] measures it on the
 //! first pass and the second sees it enlarged.
 //!
@@ -24,6 +27,7 @@ pub mod result;
 pub mod runtime;
 pub mod stitch;
 pub mod tiling;
+pub mod tips;
 pub mod zoom;
 
 pub use counter::{Counter, CounterConfig};

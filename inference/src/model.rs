@@ -27,6 +27,9 @@ pub struct ModelInfo {
     pub training_data: String,
     /// First 12 hex digits of the file's SHA-256.
     pub sha256_prefix: String,
+    /// Whether the model has the contract's optional leaf-tip heatmap output
+    /// (`[outputs] tip`). Without it every count rule counts centres.
+    pub has_tips: bool,
 }
 
 impl ModelInfo {
@@ -96,7 +99,8 @@ impl Model {
                 contract.metadata.contract_version
             )),
         }
-        problems.extend(check_io(&session, contract));
+        let (io_problems, has_tips) = check_io(&session, contract);
+        problems.extend(io_problems);
         if !problems.is_empty() {
             return Err(InferenceError::model(
                 path,
@@ -121,6 +125,7 @@ impl Model {
             trained,
             training_data,
             sha256_prefix,
+            has_tips,
         };
         Ok(Self {
             session: Mutex::new(session),
@@ -162,16 +167,23 @@ impl Model {
             }
             Ok(arr.to_owned())
         };
+        let tip = if self.info.has_tips {
+            Some(take(&c.outputs.tip, 1)?)
+        } else {
+            None
+        };
         Ok(TileOutputs {
             semantic: take(&c.outputs.semantic, NUM_CLASSES)?,
             center: take(&c.outputs.center, 1)?,
             offset: take(&c.outputs.offset, 2)?,
+            tip,
         })
     }
 }
 
-/// Differences between the session's inputs/outputs and the contract's.
-fn check_io(session: &Session, c: &Contract) -> Vec<String> {
+/// Differences between the session's inputs/outputs and the contract's, and
+/// whether the model has the optional tip output.
+fn check_io(session: &Session, c: &Contract) -> (Vec<String>, bool) {
     let mut problems = Vec::new();
     let dims = |t: &ValueType| -> Option<Vec<i64>> {
         match t {
@@ -197,20 +209,102 @@ fn check_io(session: &Session, c: &Contract) -> Vec<String> {
             )),
         }
     }
+    let outputs: Vec<(&str, Option<Vec<i64>>)> = session
+        .outputs()
+        .iter()
+        .map(|o| (o.name(), dims(o.dtype())))
+        .collect();
+    let has_tips = check_outputs(&outputs, c, &mut problems);
+    (problems, has_tips)
+}
+
+/// Checks the model's outputs, each a name and its float32 dimensions
+/// (`None`: not a float32 tensor), against the contract's, adding the
+/// differences to `problems`. Returns whether the optional tip output is
+/// there: a model without it counts by centres, but one that has it must
+/// give it the contract's shape.
+fn check_outputs(outputs: &[(&str, Option<Vec<i64>>)], c: &Contract, problems: &mut Vec<String>) -> bool {
+    let find = |name: &str| outputs.iter().find(|(n, _)| *n == name).map(|(_, d)| d);
+    let fits =
+        |d: &Option<Vec<i64>>, ch: i64| matches!(d, Some(d) if d.len() == 4 && (d[1] == ch || d[1] < 0));
     for (name, ch) in [
         (&c.outputs.semantic, NUM_CLASSES as i64),
         (&c.outputs.center, 1),
         (&c.outputs.offset, 2),
     ] {
-        match session.outputs().iter().find(|o| o.name() == name) {
+        match find(name) {
             None => problems.push(format!("no output named {name:?}")),
-            Some(o) => match dims(o.dtype()) {
-                Some(d) if d.len() == 4 && (d[1] == ch || d[1] < 0) => {}
-                other => problems.push(format!(
-                    "output {name:?} is {other:?}, contract expects float32 [N, {ch}, H, W]"
-                )),
-            },
+            Some(d) if fits(d, ch) => {}
+            Some(other) => problems.push(format!(
+                "output {name:?} is {other:?}, contract expects float32 [N, {ch}, H, W]"
+            )),
         }
     }
-    problems
+    let tip = &c.outputs.tip;
+    match find(tip) {
+        None => false,
+        Some(d) => {
+            if !fits(d, 1) {
+                problems.push(format!(
+                    "optional output {tip:?} is {d:?}, contract expects float32 [N, 1, H, W] (a leaf-tip heatmap)"
+                ));
+            }
+            true
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check(outputs: &[(&str, Option<Vec<i64>>)]) -> (Vec<String>, bool) {
+        let mut problems = Vec::new();
+        let has_tips = check_outputs(outputs, Contract::embedded(), &mut problems);
+        (problems, has_tips)
+    }
+
+    const BASE: [(&str, [i64; 4]); 3] = [
+        ("semantic", [-1, 4, -1, -1]),
+        ("center", [-1, 1, -1, -1]),
+        ("offset", [-1, 2, -1, -1]),
+    ];
+
+    fn outputs(extra: Option<Option<Vec<i64>>>) -> Vec<(&'static str, Option<Vec<i64>>)> {
+        let mut v: Vec<_> = BASE.iter().map(|(n, d)| (*n, Some(d.to_vec()))).collect();
+        if let Some(tip) = extra {
+            v.push(("tip", tip));
+        }
+        v
+    }
+
+    #[test]
+    fn the_tip_output_is_optional() {
+        assert_eq!(check(&outputs(None)), (vec![], false));
+        assert_eq!(check(&outputs(Some(Some(vec![-1, 1, -1, -1])))), (vec![], true));
+        assert_eq!(check(&outputs(Some(Some(vec![2, 1, 256, 256])))), (vec![], true));
+    }
+
+    #[test]
+    fn a_tip_output_of_the_wrong_shape_or_type_is_a_problem() {
+        for bad in [Some(vec![-1, 2, -1, -1]), Some(vec![-1, -1, -1]), None] {
+            let (problems, has_tips) = check(&outputs(Some(bad.clone())));
+            assert!(has_tips);
+            assert_eq!(problems.len(), 1, "{bad:?}: {problems:?}");
+            assert!(
+                problems[0].contains("\"tip\"") && problems[0].contains("[N, 1, H, W]"),
+                "{}",
+                problems[0]
+            );
+        }
+    }
+
+    #[test]
+    fn missing_required_outputs_are_still_problems() {
+        let (problems, _) = check(&[("semantic", Some(vec![-1, 4, -1, -1]))]);
+        assert_eq!(
+            problems,
+            vec!["no output named \"center\"", "no output named \"offset\""]
+        );
+    }
 }

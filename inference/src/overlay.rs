@@ -1,5 +1,7 @@
 //! Overlays for a person to check a count: instances in distinct colours over
-//! the original image, centres marked, the count written in the corner.
+//! the original image, centres marked (white crosses), leaf tips marked
+//! (white-ringed dots, models with a tip output), the count written in the
+//! corner.
 
 use font8x8::UnicodeFonts;
 use image::{Rgb, RgbImage};
@@ -43,7 +45,26 @@ pub fn render(contract: &Contract, img: &RgbImage, analysis: &Analysis, untraine
             }
         }
     }
+    // Leaf tips (models with a tip output): a dark dot in a white ring, small
+    // enough not to hide the leaf's end, distinct from the centres' crosses.
+    let ring = mark + 1;
+    for tip in &analysis.result.tips {
+        let (x, y) = (tip[0] as i64, tip[1] as i64);
+        for dy in -ring..=ring {
+            for dx in -ring..=ring {
+                let d2 = dx * dx + dy * dy;
+                if d2 <= (mark - 1).max(1).pow(2) {
+                    put(&mut out, x + dx, y + dy, Rgb([200, 0, 160]));
+                } else if d2 <= ring * ring {
+                    put(&mut out, x + dx, y + dy, Rgb([255, 255, 255]));
+                }
+            }
+        }
+    }
     let mut label = format!("{} leaves", analysis.result.leaf_count);
+    if !analysis.result.tips.is_empty() {
+        label.push_str(&format!(", {} tips", analysis.result.tips.len()));
+    }
     if untrained {
         label.push_str(" (UNTRAINED MODEL)");
     }

@@ -7,13 +7,17 @@
 //!    centre, so pieces of one leaf split by an occluding leaf still join one
 //!    instance;
 //! 4. each instance takes the majority class of its pixels;
-//! 5. instances smaller than the minimum area are dropped.
+//! 5. instances smaller than the minimum area are dropped;
+//! 6. with a model that has a tip output, leaf tips = local maxima of the
+//!    tip heatmap, found like the centres (see [`crate::tips`]).
 //!
 //! Everything here works in output pixels (the model's stride).
 
 use ndarray::{Array2, Array3};
 use phyllo_contract::{Contract, PostprocessDefaults, NUM_CLASSES};
 use serde::{Deserialize, Serialize};
+
+use crate::tips::{CountRule, TipPeak, DEFAULT_TIP_REACH};
 
 /// The three heads of a Panoptic-DeepLab model for one image (or one stitched canvas).
 #[derive(Debug, Clone)]
@@ -24,6 +28,8 @@ pub struct RawOutputs {
     pub center: Array2<f32>,
     /// Offsets `(dy, dx)` to the instance centre in output pixels, `[2, h, w]`.
     pub offset: Array3<f32>,
+    /// Leaf-tip heatmap `[h, w]`, for models with the optional tip output.
+    pub tip: Option<Array2<f32>>,
 }
 
 impl RawOutputs {
@@ -33,6 +39,7 @@ impl RawOutputs {
             semantic: Array3::zeros((NUM_CLASSES, h, w)),
             center: Array2::zeros((h, w)),
             offset: Array3::zeros((2, h, w)),
+            tip: None,
         }
     }
 
@@ -58,6 +65,16 @@ pub struct PostprocessParams {
     /// body; instances apart from the plant's body are dropped (0: keep all).
     /// See [`crate::attachment`].
     pub attach_radius: u32,
+    /// Minimum tip heatmap value of a leaf tip (models with a tip output).
+    pub tip_threshold: f32,
+    /// Max-pool kernel side for tip NMS (odd), in output pixels.
+    pub tip_nms_kernel: u32,
+    /// A tip belongs to a leaf with a pixel this many output pixels away or
+    /// nearer (Chebyshev). See [`crate::tips`].
+    pub tip_reach: u32,
+    /// How leaves are counted; every rule counts centres with a model that
+    /// has no tip output. See [`CountRule`].
+    pub count_rule: CountRule,
 }
 
 /// Default [`PostprocessParams::attach_radius`]: 3 output pixels, 24 pixels
@@ -72,6 +89,10 @@ impl From<&PostprocessDefaults> for PostprocessParams {
             top_k: d.top_k,
             min_leaf_area: d.min_leaf_area,
             attach_radius: DEFAULT_ATTACH_RADIUS,
+            tip_threshold: d.tip_threshold,
+            tip_nms_kernel: d.tip_nms_kernel,
+            tip_reach: DEFAULT_TIP_REACH,
+            count_rule: CountRule::default(),
         }
     }
 }
@@ -112,11 +133,17 @@ pub struct Panoptic {
     pub instance: Vec<u32>,
     /// Instances that passed the minimum area.
     pub segments: Vec<Segment>,
+    /// Leaf tips, strongest first; `None` when the model has no tip output
+    /// (not the same as `Some` of none: a model that looked and found no tip).
+    pub tips: Option<Vec<TipPeak>>,
 }
 
 impl Panoptic {
     /// Keeps the segments for which `keep` holds, clearing the others'
     /// pixels and renumbering the rest densely in their current order.
+    /// Tips are left as they are: which segment a tip belongs to is worked
+    /// out from the instance map when it is asked for
+    /// ([`Panoptic::tip_segments`]), so it follows the renumbering.
     pub fn retain(&mut self, keep: impl Fn(&Segment) -> bool) {
         let mut renumber = vec![0u32; self.segments.len() + 1];
         let mut kept = Vec::with_capacity(self.segments.len());
@@ -143,9 +170,17 @@ impl Panoptic {
 
 /// Instance centres `(y, x, score)`, strongest first.
 pub fn find_centres(center: &Array2<f32>, params: &PostprocessParams) -> Vec<(usize, usize, f32)> {
-    let (h, w) = center.dim();
-    let r = (params.nms_kernel / 2) as usize;
-    let heat = center.as_standard_layout();
+    find_peaks(center, params.center_threshold, params.nms_kernel, params.top_k)
+}
+
+/// Peaks `(y, x, score)` of a heatmap, strongest first (ties in raster
+/// order): pixels at or above `threshold` that are the maximum of the
+/// `kernel` x `kernel` window around them (max-pool NMS), one per plateau,
+/// at most `top_k` of them.
+pub fn find_peaks(heat: &Array2<f32>, threshold: f32, kernel: u32, top_k: usize) -> Vec<(usize, usize, f32)> {
+    let (h, w) = heat.dim();
+    let r = (kernel / 2) as usize;
+    let heat = heat.as_standard_layout();
     let heat = heat.as_slice().expect("standard layout");
     // Separable max filter: rows, then columns.
     let mut row_max = vec![f32::NEG_INFINITY; h * w];
@@ -161,7 +196,7 @@ pub fn find_centres(center: &Array2<f32>, params: &PostprocessParams) -> Vec<(us
         let (a, b) = (y.saturating_sub(r), (y + r + 1).min(h));
         for x in 0..w {
             let v = heat[y * w + x];
-            if v < params.center_threshold {
+            if v < threshold {
                 continue;
             }
             let m = (a..b)
@@ -182,7 +217,7 @@ pub fn find_centres(center: &Array2<f32>, params: &PostprocessParams) -> Vec<(us
         }
     }
     peaks.sort_by(|a, b| b.2.total_cmp(&a.2).then((a.0, a.1).cmp(&(b.0, b.1))));
-    peaks.truncate(params.top_k);
+    peaks.truncate(top_k);
     peaks
 }
 
@@ -304,12 +339,23 @@ pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParam
     for v in instance.iter_mut() {
         *v = renumber[*v as usize];
     }
+    let tips = out.tip.as_ref().map(|tip| {
+        find_peaks(tip, params.tip_threshold, params.tip_nms_kernel, params.top_k)
+            .into_iter()
+            .map(|(y, x, score)| TipPeak {
+                x: x as u32,
+                y: y as u32,
+                score,
+            })
+            .collect()
+    });
     Panoptic {
         height: h,
         width: w,
         semantic,
         instance,
         segments,
+        tips,
     }
 }
 
@@ -324,6 +370,7 @@ mod tests {
             top_k: 10,
             min_leaf_area: 1,
             attach_radius: 0,
+            ..PostprocessParams::default()
         }
     }
 
@@ -355,6 +402,7 @@ mod tests {
             semantic: vec![1, 1, 1],
             instance: vec![1, 2, 3],
             segments: vec![seg(1, 0), seg(2, 1), seg(3, 2)],
+            tips: None,
         };
         p.retain(|s| s.id != 2);
         assert_eq!(p.instance, vec![1, 0, 2]);
@@ -373,5 +421,66 @@ mod tests {
         let p = PostprocessParams { top_k: 2, ..params() };
         let got: Vec<_> = find_centres(&c, &p).iter().map(|c| c.1).collect();
         assert_eq!(got, vec![35, 25]);
+    }
+
+    #[test]
+    fn find_centres_is_find_peaks_with_the_centre_parameters() {
+        // A bumpy deterministic heatmap with plateaus and many local maxima.
+        let c = Array2::from_shape_fn((40, 50), |(y, x)| ((y * 7 + x * 13) % 17) as f32 / 16.0);
+        for p in [
+            params(),
+            PostprocessParams::default(),
+            PostprocessParams { top_k: 3, ..params() },
+        ] {
+            let got = find_centres(&c, &p);
+            assert!(!got.is_empty());
+            assert_eq!(got, find_peaks(&c, p.center_threshold, p.nms_kernel, p.top_k));
+        }
+    }
+
+    #[test]
+    fn find_peaks_takes_its_own_kernel_and_threshold() {
+        // Two tips three pixels apart: one NMS window of 7 holds both, one of
+        // 5 does not.
+        let mut t = Array2::zeros((12, 12));
+        t[[6, 4]] = 0.8;
+        t[[6, 7]] = 0.6;
+        assert_eq!(find_peaks(&t, 0.3, 7, 64), vec![(6, 4, 0.8)]);
+        assert_eq!(find_peaks(&t, 0.3, 5, 64), vec![(6, 4, 0.8), (6, 7, 0.6)]);
+        assert_eq!(find_peaks(&t, 0.7, 5, 64), vec![(6, 4, 0.8)]);
+        assert_eq!(find_peaks(&t, 0.3, 5, 1), vec![(6, 4, 0.8)]);
+    }
+
+    #[test]
+    fn panoptic_finds_tips_only_with_a_tip_map() {
+        let c = Contract::embedded();
+        let p = PostprocessParams::default();
+        let mut out = RawOutputs::zeros(16, 16);
+        assert_eq!(panoptic(&out, c, &p).tips, None, "no tip output, no tips");
+        out.tip = Some(Array2::from_elem((16, 16), 0.01));
+        assert_eq!(
+            panoptic(&out, c, &p).tips,
+            Some(vec![]),
+            "a tip output that found none"
+        );
+        let tip = out.tip.as_mut().unwrap();
+        tip[[3, 9]] = 0.9;
+        tip[[12, 2]] = 0.5;
+        tip[[12, 3]] = 0.4; // inside the first peak's NMS window
+        assert_eq!(
+            panoptic(&out, c, &p).tips,
+            Some(vec![
+                TipPeak {
+                    x: 9,
+                    y: 3,
+                    score: 0.9
+                },
+                TipPeak {
+                    x: 2,
+                    y: 12,
+                    score: 0.5
+                },
+            ])
+        );
     }
 }

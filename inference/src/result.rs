@@ -56,4 +56,39 @@ pub struct CountResult {
     pub tiles: u32,
     /// Time per stage.
     pub ms: StageTimings,
+    /// Leaf tips `[x, y, score]` in original-image pixels, strongest first,
+    /// for models with a tip output (empty, and left out of JSON, otherwise).
+    /// Every tip inside the plant's box, whether or not it lies on a leaf.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub tips: Vec<[f32; 3]>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn result(tips: Vec<[f32; 3]>) -> CountResult {
+        CountResult {
+            leaf_count: 1,
+            instances: vec![],
+            image_size: [10, 10],
+            region: [0, 0, 10, 10],
+            scale: 0.5,
+            tiles: 1,
+            ms: StageTimings::default(),
+            tips,
+        }
+    }
+
+    #[test]
+    fn results_without_tips_keep_their_json() {
+        // What a tip-less count wrote before tips existed reads back, and
+        // writes back the same.
+        let old = r#"{"leaf_count":1,"instances":[],"image_size":[10,10],"region":[0,0,10,10],"scale":0.5,"tiles":1,"ms":{"decode":0.0,"tile":0.0,"inference":0.0,"postprocess":0.0,"total":0.0}}"#;
+        let r: CountResult = serde_json::from_str(old).unwrap();
+        assert_eq!(r, result(vec![]));
+        assert_eq!(serde_json::to_string(&r).unwrap(), old);
+        let with = serde_json::to_value(result(vec![[1.0, 2.0, 0.5]])).unwrap();
+        assert_eq!(with["tips"], serde_json::json!([[1.0, 2.0, 0.5]]));
+    }
 }

@@ -102,6 +102,7 @@ mod tests {
             semantic: vec![0; 10_000],
             instance: vec![0; 10_000],
             segments: vec![seg(40, 60), seg(20, 45)],
+            tips: None,
         };
         assert_eq!(instances_height(&pan, 2), Some(40 * 2 + 24));
         pan.segments.clear();

@@ -104,6 +104,7 @@ fn perfect_outputs(c: &Contract, label: &Label) -> (RawOutputs, usize, usize, Ve
             semantic,
             center,
             offset,
+            tip: None,
         },
         w,
         h,

@@ -45,6 +45,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .with_context(|| format!("cannot create overlay directory {}", dir.display()))?;
     }
     let model_id = counter.model_id();
+    let has_tips = info.has_tips;
     let mut failed = 0usize;
     let stdout = std::io::stdout();
     for path in &args.images {
@@ -58,9 +59,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                     v["model"] = json!(model_id);
                     writeln!(out, "{v}")?;
                 } else {
+                    // With a tip model, the tips found beside the leaves
+                    // counted (by the count rule), so the two can be compared.
+                    let tips = if has_tips {
+                        format!("\t{} tips", r.tips.len())
+                    } else {
+                        String::new()
+                    };
                     writeln!(
                         out,
-                        "{}\t{} leaves\t({} tiles, {:.0} ms)",
+                        "{}\t{} leaves{tips}\t({} tiles, {:.0} ms)",
                         path.display(),
                         r.leaf_count,
                         r.tiles,

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use phyllo_inference::postprocess::{PostprocessParams, DEFAULT_ATTACH_RADIUS};
 use phyllo_inference::region::RegionMode;
+use phyllo_inference::tips::{CountRule, DEFAULT_TIP_REACH};
 use phyllo_inference::CounterConfig;
 
 /// Model and runtime options.
@@ -49,6 +50,25 @@ pub struct CounterArgs {
     /// per neighbourhood, in output pixels, odd (default: the contract's).
     #[arg(long, value_name = "PIXELS", value_parser = parse_nms_kernel)]
     pub nms_kernel: Option<u32>,
+    /// How leaves are counted with a model that has a leaf-tip output:
+    /// `centres` (one per leaf segment), `tips` (the tips that lie on a
+    /// leaf) or `split` (per leaf segment its tips, at least one). A model
+    /// without tips counts centres whatever the rule.
+    #[arg(
+        long,
+        value_name = "RULE",
+        default_value_t = PostprocessParams::default().count_rule,
+        value_parser = parse_count_rule(),
+    )]
+    pub count_rule: CountRule,
+    /// Post-processing: minimum tip heatmap value of a leaf tip (default:
+    /// the contract's).
+    #[arg(long, value_name = "VALUE")]
+    pub tip_threshold: Option<f32>,
+    /// Post-processing: a tip belongs to a leaf with a pixel this many model
+    /// output pixels away or nearer.
+    #[arg(long, value_name = "PIXELS", default_value_t = DEFAULT_TIP_REACH)]
+    pub tip_reach: u32,
 }
 
 impl CounterArgs {
@@ -60,6 +80,9 @@ impl CounterArgs {
             min_leaf_area: self.min_leaf_area.unwrap_or(defaults.min_leaf_area),
             center_threshold: self.center_threshold.unwrap_or(defaults.center_threshold),
             nms_kernel: self.nms_kernel.unwrap_or(defaults.nms_kernel),
+            count_rule: self.count_rule,
+            tip_threshold: self.tip_threshold.unwrap_or(defaults.tip_threshold),
+            tip_reach: self.tip_reach,
             ..defaults
         };
         Ok(CounterConfig {
@@ -74,6 +97,13 @@ impl CounterArgs {
             ..CounterConfig::default()
         })
     }
+}
+
+/// Parses a `--count-rule`, listing the rules in `--help`.
+fn parse_count_rule() -> impl clap::builder::TypedValueParser<Value = CountRule> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(CountRule::ALL.map(CountRule::name))
+        .map(|s| s.parse::<CountRule>().expect("a listed rule"))
 }
 
 /// Parses an `--nms-kernel` side: odd, 1..=31.
@@ -115,5 +145,56 @@ pub fn parse_region(s: &str) -> anyhow::Result<RegionMode> {
                 y1: v[3],
             })
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+    use phyllo_inference::tips::CountRule;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        counter: CounterArgs,
+    }
+
+    fn config(args: &[&str]) -> Result<CounterConfig, String> {
+        let cli = Cli::try_parse_from(std::iter::once("phyllo").chain(args.iter().copied()))
+            .map_err(|e| e.to_string())?;
+        cli.counter.config().map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn tip_options_reach_the_post_processing() {
+        let p = config(&[
+            "--count-rule",
+            "split",
+            "--tip-threshold",
+            "0.45",
+            "--tip-reach",
+            "4",
+        ])
+        .unwrap()
+        .postprocess;
+        assert_eq!(p.count_rule, CountRule::Split);
+        assert_eq!(p.tip_threshold, 0.45);
+        assert_eq!(p.tip_reach, 4);
+        assert_eq!(
+            config(&["--count-rule", "tips"]).unwrap().postprocess.count_rule,
+            CountRule::Tips
+        );
+    }
+
+    #[test]
+    fn without_tip_options_the_defaults_hold() {
+        assert_eq!(config(&[]).unwrap().postprocess, PostprocessParams::default());
+    }
+
+    #[test]
+    fn an_unknown_count_rule_is_refused_with_the_choices() {
+        let err = config(&["--count-rule", "centers"]).unwrap_err();
+        assert!(err.contains("centres, tips, split"), "{err}");
     }
 }

@@ -207,6 +207,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .collect();
         let mut v = json!({
             "model": counter.model_id(),
+            "tip_output": counter.model_info().has_tips,
+            "count_rule": counter.count_rule(),
             "source": title,
             "fingerprint": fingerprint.hex(),
             "metrics": metrics,
@@ -233,7 +235,23 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         println!("{v}");
     } else {
-        println!("model    {}", counter.model_id());
+        // Without a tip output every count rule counts centres; say so when
+        // another rule was asked for.
+        let (used, asked) = (counter.count_rule(), counter.config().postprocess.count_rule);
+        println!(
+            "model    {}  (tip output: {}; count rule: {used}{})",
+            counter.model_id(),
+            if counter.model_info().has_tips {
+                "yes"
+            } else {
+                "no"
+            },
+            if used == asked {
+                String::new()
+            } else {
+                format!(", not {asked}: no tip output")
+            }
+        );
         println!("source   {title}");
         println!(
             "data     {} ({} items read; sha256 of names, files and truths, models/MODEL.md records each set's)",
