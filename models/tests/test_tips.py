@@ -158,3 +158,21 @@ def test_export_of_a_three_output_model_is_unchanged(tmp_path, contract):
     base = load_base(MODELS / "phyllo.onnx", contract)
     p = export_onnx(base, tmp_path / "m.onnx", contract, model_name="t", trained=True, training_data="t")
     assert [o.name for o in ort.InferenceSession(str(p)).get_outputs()] == list(contract.output_names)
+
+
+def test_tip_matching_is_one_to_one_nearest_first(tmp_path):
+    from phyllo_train.tip_match import main as match_main, match_tips
+
+    marked = np.array([[0.0, 0.0], [10.0, 0.0], [100.0, 100.0]])
+    predicted = np.array([[4.0, 0.0], [11.0, 0.0], [300.0, 300.0]])
+    # (4,0) is nearer to (0,0)... but (11,0)-(10,0) is the nearest pair and goes first; both marked tips match.
+    assert match_tips(marked, predicted, 5.0) == (2, 1, 1)
+    # One predicted tip cannot serve two marked ones.
+    assert match_tips(marked[:2], predicted[:1], 20.0) == (1, 1, 0)
+    assert match_tips(marked, np.zeros((0, 2)), 5.0) == (0, 3, 0)
+    csv_path = tmp_path / "tips.csv"
+    csv_path.write_text('file,leaf_count,tips_xy\na.jpg,2,"[[0, 0], [10, 0]]"\n')
+    counts = tmp_path / "counts.jsonl"
+    counts.write_text(json.dumps({"file": "/x/a.jpg", "leaf_count": 2, "tips": [[1, 0, 0.9], [50, 0, 0.5]]}) + "\n"
+                      + json.dumps({"file": "/x/b.jpg", "error": "corrupt"}) + "\n")
+    assert match_main(["--tips", str(csv_path), "--counts", str(counts), "--radius", "5"]) == 0

@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Counts one evaluation set under each count rule (centres, split, tips) and
+# tip threshold, one table row each: exact / within one / RMSE / bias.
+# Only a model with a `tip` output counts differently under the rules.
+# Calibrate on a synthetic set used neither for training nor for testing
+# (models/MODEL.md names it), never on the real dev images.
+# Usage: scripts/count-rule-sweep.sh MODEL "RULES" "TIP_THRESHOLDS" EVAL_ARGS...
+#   e.g. scripts/count-rule-sweep.sh models/phyllo.onnx "centres split tips" "0.3 0.5" \
+#          --dataset /work/data/calib-s700001 --split all
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+model=${1:?usage: count-rule-sweep.sh MODEL RULES TIP_THRESHOLDS EVAL_ARGS...}
+rules=${2:?rules}
+thresholds=${3:?tip thresholds}
+shift 3
+bin=$root/target/release/phyllo
+cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
+echo "| count rule | tip threshold | images | exact | within ±1 | RMSE | MAE | bias |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|"
+for r in $rules; do
+  for t in $thresholds; do
+    "$bin" eval --threads "${THREADS:-2}" --model "$model" --json --count-rule "$r" --tip-threshold "$t" "$@" 2>/dev/null |
+      python3 -c "import json,sys; m=json.load(sys.stdin)['metrics']; print(f\"| $r | $t | {m['images']} | {100*m['exact']:.1f}% | {100*m['within_1']:.1f}% | {m['rmse']:.3f} | {m['mae']:.3f} | {m['bias']:+.3f} |\")"
+    # The centres rule ignores the tip threshold: one row is enough.
+    if [ "$r" = centres ]; then break; fi
+  done
+done
