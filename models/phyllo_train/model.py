@@ -221,6 +221,39 @@ class PhylloNet(nn.Module):
         return sem, center, offset
 
 
+class TipHead(nn.Module):
+    """Decoder features (stride 4) fused with stem features (stride 2) into one tip logit map at stride 2."""
+
+    def __init__(self, c_dec: int = 32, c_stem: int = 16, width: int = 32):
+        super().__init__()
+        self.fuse = FuseUp(c_dec, c_stem, width)
+        # A dilated second conv widens the view along the leaf: a tip is where a blade ends.
+        self.refine = nn.Sequential(SepConv(width, width), SepConv(width, width, dilation=2))
+        self.out = nn.Conv2d(width, 1, 1)
+        # Start near "no tip anywhere" (CenterNet's prior of 0.1 % positives), so early
+        # steps are not spent unlearning a grey heatmap.
+        nn.init.normal_(self.out.weight, std=1e-3)
+        nn.init.constant_(self.out.bias, -4.6)
+
+    def forward(self, f2: torch.Tensor, d4: torch.Tensor) -> torch.Tensor:
+        """Tip logits ``[N, 1, H/2, W/2]``."""
+        return self.out(self.refine(self.fuse(d4, f2)))
+
+
+class TipNet(nn.Module):
+    """The base network's three outputs plus the tip heatmap (sigmoid, in [0, 1])."""
+
+    def __init__(self, base: PhylloNet, head: TipHead):
+        super().__init__()
+        self.base = base
+        self.head = head
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """x: normalised NCHW float32, H and W multiples of 32."""
+        f2, d4 = self.base.features(x)
+        return (*self.base.heads(f2, d4), torch.sigmoid(self.head(f2, d4)))
+
+
 DEFAULT_DEC = (64, 48, 32, 24)
 
 

@@ -37,41 +37,8 @@ from .augment import AugmentConfig
 from .contract import Contract, load_contract
 from .dataset import PanopticDataset
 from .export import check_onnx, export_onnx
-from .from_onnx import load_folded
-from .model import FuseUp, PhylloNet, SepConv, build_model, count_parameters
-
-
-class TipHead(nn.Module):
-    """Decoder features (stride 4) fused with stem features (stride 2) into one tip logit map at stride 2."""
-
-    def __init__(self, c_dec: int = 32, c_stem: int = 16, width: int = 32):
-        super().__init__()
-        self.fuse = FuseUp(c_dec, c_stem, width)
-        # A dilated second conv widens the view along the leaf: a tip is where a blade ends.
-        self.refine = nn.Sequential(SepConv(width, width), SepConv(width, width, dilation=2))
-        self.out = nn.Conv2d(width, 1, 1)
-        # Start near "no tip anywhere" (CenterNet's prior of 0.1 % positives), so early
-        # steps are not spent unlearning a grey heatmap.
-        nn.init.normal_(self.out.weight, std=1e-3)
-        nn.init.constant_(self.out.bias, -4.6)
-
-    def forward(self, f2: torch.Tensor, d4: torch.Tensor) -> torch.Tensor:
-        """Tip logits ``[N, 1, H/2, W/2]``."""
-        return self.out(self.refine(self.fuse(d4, f2)))
-
-
-class TipNet(nn.Module):
-    """The base network's three outputs plus the tip heatmap (sigmoid, in [0, 1])."""
-
-    def __init__(self, base: PhylloNet, head: TipHead):
-        super().__init__()
-        self.base = base
-        self.head = head
-
-    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-        """x: normalised NCHW float32, H and W multiples of 32."""
-        f2, d4 = self.base.features(x)
-        return (*self.base.heads(f2, d4), torch.sigmoid(self.head(f2, d4)))
+from .from_onnx import has_tip_output, load_folded
+from .model import PhylloNet, TipHead, TipNet, build_model, count_parameters
 
 
 def tip_focal_loss(logits: torch.Tensor, target: torch.Tensor, alpha: float = 2.0, beta: float = 4.0) -> torch.Tensor:
@@ -88,9 +55,12 @@ def tip_focal_loss(logits: torch.Tensor, target: torch.Tensor, alpha: float = 2.
 
 
 def load_base(path: str | Path, contract: Contract) -> PhylloNet:
-    """The network of an exported ONNX file, rebuilt in PyTorch (eval mode, exact; see ``from_onnx``)."""
+    """The network of an exported ONNX file, rebuilt in PyTorch (eval mode, exact; see ``from_onnx``).
+
+    Of a model that already has a tip head, only the base network is kept.
+    """
     base = build_model(contract.num_classes, seed=0)
-    load_folded(base, path, contract)
+    load_folded(TipNet(base, TipHead()) if has_tip_output(path, contract) else base, path, contract)
     return base.eval()
 
 

@@ -12,8 +12,10 @@ from PIL import Image
 from phyllo_train.augment import AugmentConfig, augment
 from phyllo_train.dataset import PanopticDataset
 from phyllo_train.export import export_onnx
+from phyllo_train.from_onnx import main as from_onnx_main
 from phyllo_train.targets import tip_heatmap
-from phyllo_train.tips import TipHead, TipNet, count_peaks, load_base, main, tip_focal_loss
+from phyllo_train.model import TipHead, TipNet
+from phyllo_train.tips import count_peaks, load_base, main, tip_focal_loss
 
 MODELS = Path(__file__).resolve().parent.parent
 
@@ -136,11 +138,19 @@ def test_training_then_export_keeps_the_base_outputs_exactly(tmp_path, tiny_data
                  "--out", str(out), "--check-size", "128"]) == 0
     x = np.random.default_rng(0).standard_normal((1, 3, 128, 160), dtype=np.float32)
     got = ort.InferenceSession(str(out)).run(None, {contract.input_name: x})
-    base = ort.InferenceSession(str(MODELS / "phyllo.onnx")).run(None, {contract.input_name: x})
-    assert len(got) == 4 and len(base) == 3
+    base = ort.InferenceSession(str(MODELS / "phyllo.onnx")).run(None, {contract.input_name: x})[:3]
+    assert len(got) == 4
     for g, b in zip(got, base):
         np.testing.assert_allclose(g, b, atol=2e-4)
     assert got[3].shape == (1, 1, 64, 80) and 0.0 <= got[3].min() and got[3].max() <= 1.0
+    # A tip model is a base for the next tip head, and from_onnx rebuilds its base network.
+    t = torch.from_numpy(x)
+    with torch.no_grad():
+        for a, b in zip(load_base(out, contract)(t), load_base(MODELS / "phyllo.onnx", contract)(t)):
+            assert float((a - b).abs().max()) < 1e-4
+    assert from_onnx_main([str(out), "--out", str(tmp_path / "rebuilt.pt")]) == 0
+    assert set(torch.load(tmp_path / "rebuilt.pt", weights_only=False)["model"]) == set(
+        load_base(MODELS / "phyllo.onnx", contract).state_dict())
 
 
 def test_frozen_base_is_the_onnx_model(contract):
