@@ -2,6 +2,7 @@
 
     target/release/phyllo count --json --model MODEL IMAGES... > counts.jsonl
     python -m phyllo_train.tip_match --tips ../shared/data/unl-maize-dev/leaf_tips.csv --counts counts.jsonl
+    python -m phyllo_train.tip_match --dataset DIR --split val --counts counts.jsonl   # phyllo-gen leaf_tips
 
 ``phyllo count --json`` lists a tip model's tip peaks (``tips``: x, y, score
 in image pixels). Each marked tip (``tips_xy``) is matched one to one to a
@@ -45,15 +46,26 @@ def read_marked(path: Path) -> dict[str, np.ndarray]:
         return {r["file"]: np.array(json.loads(r["tips_xy"]), np.float64).reshape(-1, 2) for r in csv.DictReader(f)}
 
 
+def read_dataset_tips(root: Path, split: str) -> dict[str, np.ndarray]:
+    """``image file name -> (K, 2)`` apparent tips of a phyllo-gen dataset's ``split`` (its ``leaf_tips``)."""
+    from .dataset import read_manifest
+
+    return {Path(r["image"]).name: np.array(list(r.get("leaf_tips", {}).values()), np.float64).reshape(-1, 2)
+            for r in read_manifest(root, split)}
+
+
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point: one row per radius, summed over the images both files name."""
     ap = argparse.ArgumentParser(prog="python -m phyllo_train.tip_match", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--tips", type=Path, required=True, help="leaf_tips.csv (file, ..., tips_xy)")
+    src = ap.add_mutually_exclusive_group(required=True)
+    src.add_argument("--tips", type=Path, help="leaf_tips.csv (file, ..., tips_xy)")
+    src.add_argument("--dataset", type=Path, help="a phyllo-gen dataset whose manifest has leaf_tips")
+    ap.add_argument("--split", default="val", help="with --dataset: the split (default val)")
     ap.add_argument("--counts", type=Path, required=True, help="`phyllo count --json` output (JSON lines)")
-    ap.add_argument("--radius", type=float, action="append", help="match radius in image pixels (repeatable; default 12 24 40)")
+    ap.add_argument("--radius", type=float, action="append", help="match radius in image pixels (repeatable; default 6 12 24 40)")
     args = ap.parse_args(argv)
-    marked = read_marked(args.tips)
+    marked = read_marked(args.tips) if args.tips else read_dataset_tips(args.dataset, args.split)
     predicted: dict[str, np.ndarray] = {}
     for n, line in enumerate(args.counts.read_text(encoding="utf-8").splitlines(), 1):
         if not line.strip():
@@ -65,13 +77,13 @@ def main(argv: list[str] | None = None) -> int:
         predicted[Path(rec["file"]).name] = np.array([t[:2] for t in rec.get("tips", [])], np.float64)
     files = sorted(set(marked) & set(predicted))
     if not files:
-        print(f"no image of {args.counts} is in {args.tips}", file=sys.stderr)
+        print(f"no image of {args.counts} is in {args.tips or args.dataset}", file=sys.stderr)
         return 1
     print(f"{len(files)} images, {sum(len(marked[f]) for f in files)} marked tips, "
           f"{sum(len(predicted[f]) for f in files)} predicted tips")
     print("| radius (px) | matched | missed | extra | recall | precision |")
     print("|---:|---:|---:|---:|---:|---:|")
-    for r in args.radius or [12.0, 24.0, 40.0]:
+    for r in args.radius or [6.0, 12.0, 24.0, 40.0]:
         m, mi, ex = (sum(v) for v in zip(*(match_tips(marked[f], predicted[f], r) for f in files)))
         print(f"| {r:g} | {m} | {mi} | {ex} | {m / max(m + mi, 1):.3f} | {m / max(m + ex, 1):.3f} |")
     return 0

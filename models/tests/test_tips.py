@@ -186,3 +186,15 @@ def test_tip_matching_is_one_to_one_nearest_first(tmp_path):
     counts.write_text(json.dumps({"file": "/x/a.jpg", "leaf_count": 2, "tips": [[1, 0, 0.9], [50, 0, 0.5]]}) + "\n"
                       + json.dumps({"file": "/x/b.jpg", "error": "corrupt"}) + "\n")
     assert match_main(["--tips", str(csv_path), "--counts", str(counts), "--radius", "5"]) == 0
+
+
+def test_tip_matching_reads_a_datasets_leaf_tips(tmp_path, tiny_dataset):
+    from phyllo_train.tip_match import main as match_main, read_dataset_tips
+
+    root = _with_tips(tiny_dataset, tmp_path)
+    tips = read_dataset_tips(root, "val")
+    name, pts = next(iter(tips.items()))
+    assert len(pts) >= 1
+    counts = tmp_path / "counts.jsonl"
+    counts.write_text(json.dumps({"file": f"/x/{name}", "tips": [[*pts[0], 0.9]]}) + "\n")
+    assert match_main(["--dataset", str(root), "--counts", str(counts), "--radius", "1"]) == 0
