@@ -1,6 +1,8 @@
 """A leaf-tip head on a trained network's frozen features, its training and its export.
 
     python -m phyllo_train.tips train --base models/phyllo.onnx --data DIR [--data DIR2] --out RUN_DIR
+    python -m phyllo_train.tips cache --base models/phyllo.onnx --data DIR --out CACHE --passes 2
+    python -m phyllo_train.tips train --base models/phyllo.onnx --data DIR --cache CACHE --out RUN_DIR --width 48
     python -m phyllo_train.tips export --base models/phyllo.onnx --head RUN_DIR/last.pt --out MODEL.onnx
 
 Human annotators count a leaf by marking its tip (``leaf_tips.csv`` of the
@@ -39,6 +41,7 @@ from .dataset import PanopticDataset
 from .export import check_onnx, export_onnx
 from .from_onnx import has_tip_output, load_folded
 from .model import PhylloNet, TipHead, TipNet, build_model, count_parameters
+from .tip_cache import FeatureCache, build as build_cache
 
 
 def tip_focal_loss(logits: torch.Tensor, target: torch.Tensor, alpha: float = 2.0, beta: float = 4.0) -> torch.Tensor:
@@ -106,42 +109,55 @@ def train(args: argparse.Namespace) -> int:
     base = load_base(args.base, contract)
     for p in base.parameters():
         p.requires_grad_(False)
-    head = TipHead()
+    head = TipHead(width=args.width)
     opt = torch.optim.AdamW(head.parameters(), lr=args.lr, weight_decay=1e-4)
     args.out.mkdir(parents=True, exist_ok=True)
     last = args.out / "last.pt"
     step = 0
     if last.exists():
         ckpt = torch.load(last, map_location="cpu", weights_only=False)
+        if int(ckpt.get("width", 32)) != args.width:
+            raise ValueError(f"{last}: head width {ckpt.get('width', 32)}, asked for --width {args.width}")
         head.load_state_dict(ckpt["head"])
         opt.load_state_dict(ckpt["opt"])
         step = int(ckpt["step"])
         print(f"resuming {last} at step {step}", flush=True)
     (args.out / "args.json").write_text(json.dumps({k: str(v) for k, v in vars(args).items()}, indent=1))
-    train_loader, train_sets = _loader(args.data, "train", AugmentConfig(crop=args.crop), contract, args.batch,
-                                       args.seed, args.workers, shuffle=True)
+    if args.cache:
+        train_sets = [FeatureCache(c, sub=args.sub_crop, seed=args.seed) for c in args.cache]
+        g = torch.Generator().manual_seed(args.seed)
+        train_loader = DataLoader(ConcatDataset(train_sets), batch_size=args.batch, shuffle=True, drop_last=True,
+                                  num_workers=args.workers, generator=g, persistent_workers=args.workers > 0)
+    else:
+        train_loader, train_sets = _loader(args.data, "train", AugmentConfig(crop=args.crop), contract, args.batch,
+                                           args.seed, args.workers, shuffle=True)
     val_loader, _ = _loader(args.data, "val", AugmentConfig.none(crop=args.crop), contract, args.batch,
                             args.seed, 0, shuffle=False, limit=args.val_images)
     print(f"tip head: {count_parameters(head)} parameters on frozen {args.base}; "
-          f"{sum(len(s) for s in train_sets)} training images", flush=True)
+          f"{sum(len(s) for s in train_sets)} training {'cached crops' if args.cache else 'images'}", flush=True)
     log = open(args.out / "log.jsonl", "a", encoding="utf-8")
     head.train()
     t0, seen, epoch = time.time(), 0, step // max(len(train_loader), 1)
     while step < args.steps:
         for s in train_sets:
             s.set_epoch(epoch)
-        for x, t in train_loader:
+        for batch in train_loader:
             lr = args.lr * 0.5 * (1 + math.cos(math.pi * min(step / args.steps, 1.0)))
             for grp in opt.param_groups:
                 grp["lr"] = lr
-            with torch.no_grad():
-                f2, d4 = base.features(x)
-            loss = tip_focal_loss(head(f2, d4), t["tip"])
+            if args.cache:
+                f2, d4, tip = batch
+            else:
+                x, t = batch
+                tip = t["tip"]
+                with torch.no_grad():
+                    f2, d4 = base.features(x)
+            loss = tip_focal_loss(head(f2, d4), tip)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
             step += 1
-            seen += x.shape[0]
+            seen += f2.shape[0]
             if step % args.log_every == 0:
                 rate = seen / (time.time() - t0)
                 print(f"step {step}/{args.steps} loss {float(loss.detach()):.4f} lr {lr:.2e} {rate:.1f} img/s", flush=True)
@@ -151,8 +167,9 @@ def train(args: argparse.Namespace) -> int:
                 print(json.dumps(rec), flush=True)
                 log.write(json.dumps(rec) + "\n")
                 log.flush()
-                torch.save({"head": head.state_dict(), "opt": opt.state_dict(), "step": step,
-                            "base": str(args.base), "data": [str(d) for d in args.data]}, last)
+                torch.save({"head": head.state_dict(), "opt": opt.state_dict(), "step": step, "width": args.width,
+                            "base": str(args.base), "data": [str(d) for d in args.data],
+                            "cache": [str(c) for c in args.cache or []]}, last)
             if done:
                 break
         epoch += 1
@@ -162,8 +179,9 @@ def train(args: argparse.Namespace) -> int:
 
 def build_tipnet(base_path: str | Path, head_path: str | Path, contract: Contract) -> TipNet:
     """The base network of ``base_path`` (ONNX) with the tip head of a ``train`` checkpoint."""
-    head = TipHead()
-    head.load_state_dict(torch.load(head_path, map_location="cpu", weights_only=False)["head"])
+    ckpt = torch.load(head_path, map_location="cpu", weights_only=False)
+    head = TipHead(width=int(ckpt.get("width", 32)))
+    head.load_state_dict(ckpt["head"])
     return TipNet(load_base(base_path, contract), head).eval()
 
 
@@ -183,6 +201,16 @@ def export(args: argparse.Namespace) -> int:
     errs = check_onnx(path, net, contract, output_names=names, size=args.check_size)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB, {count_parameters(net.head)} tip-head params on "
           f"{base_name}); ORT vs torch max abs diff: " + ", ".join(f"{k}={v:.2e}" for k, v in errs.items()))
+    return 0
+
+
+def cache(args: argparse.Namespace) -> int:
+    """Write the frozen base's features of ``--passes`` augmented crops per training image."""
+    contract = load_contract(args.contract)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    base = load_base(args.base, contract)
+    build_cache(base, args.data, args.out, contract, args.crop, args.passes, args.batch, args.seed, args.workers)
     return 0
 
 
@@ -206,6 +234,23 @@ def main(argv: list[str] | None = None) -> int:
     tr.add_argument("--ckpt-every", type=int, default=250)
     tr.add_argument("--val-images", type=int, default=48, help="validation images per dataset")
     tr.add_argument("--contract", default=None)
+    tr.add_argument("--width", type=int, default=32, help="tip head channels")
+    tr.add_argument("--cache", type=Path, action="append", default=None,
+                    help="train on a `tips cache` directory instead of live crops (repeatable); "
+                         "--data still gives the validation images")
+    tr.add_argument("--sub-crop", type=int, default=None,
+                    help="random aligned sub-crop of each cached crop (input px, multiple of 4)")
+    ca = sub.add_parser("cache", help="store the frozen base's features of augmented training crops")
+    ca.add_argument("--base", type=Path, required=True)
+    ca.add_argument("--data", type=Path, action="append", required=True)
+    ca.add_argument("--out", type=Path, required=True)
+    ca.add_argument("--crop", type=int, default=384)
+    ca.add_argument("--passes", type=int, default=2, help="augmented crops per training image")
+    ca.add_argument("--batch", type=int, default=8)
+    ca.add_argument("--seed", type=int, default=0)
+    ca.add_argument("--workers", type=int, default=1)
+    ca.add_argument("--threads", type=int, default=0)
+    ca.add_argument("--contract", default=None)
     ex = sub.add_parser("export", help="export base + tip head to ONNX")
     ex.add_argument("--base", type=Path, required=True)
     ex.add_argument("--head", type=Path, required=True, help="RUN_DIR/last.pt of `train`")
@@ -214,7 +259,7 @@ def main(argv: list[str] | None = None) -> int:
     ex.add_argument("--check-size", type=int, default=256)
     ex.add_argument("--contract", default=None)
     args = ap.parse_args(argv)
-    return train(args) if args.cmd == "train" else export(args)
+    return {"train": train, "export": export, "cache": cache}[args.cmd](args)
 
 
 if __name__ == "__main__":

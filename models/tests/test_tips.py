@@ -198,3 +198,49 @@ def test_tip_matching_reads_a_datasets_leaf_tips(tmp_path, tiny_dataset):
     counts = tmp_path / "counts.jsonl"
     counts.write_text(json.dumps({"file": f"/x/{name}", "tips": [[*pts[0], 0.9]]}) + "\n")
     assert match_main(["--dataset", str(root), "--counts", str(counts), "--radius", "1"]) == 0
+
+
+def test_cached_features_are_the_live_ones_and_train_a_wider_head(tmp_path, tiny_dataset, contract):
+    """`tips cache` stores exactly what the live loader feeds the head (to float16), it resumes, and a
+    wider head trains on it and exports."""
+    from phyllo_train.tip_cache import FeatureCache
+
+    root = _with_tips(tiny_dataset, tmp_path)
+    cache = tmp_path / "cache"
+    args = ["cache", "--base", str(MODELS / "phyllo.onnx"), "--data", str(root), "--out", str(cache),
+            "--crop", "128", "--passes", "2", "--batch", "2", "--workers", "0"]
+    assert main(args) == 0
+    meta = json.loads((cache / "meta.json").read_text())
+    n = len(PanopticDataset(root, "train", contract=contract))
+    assert meta["done"] == meta["total"] == 2 * n
+    # Pass 1, image 0: the dataset's augmentation at epoch 1, through the frozen base.
+    ds = PanopticDataset(root, "train", AugmentConfig(crop=128), contract, with_tips=True)
+    ds.set_epoch(1)
+    x, t = ds[0]
+    with torch.no_grad():
+        f2, d4 = load_base(MODELS / "phyllo.onnx", contract).features(x[None])
+    full = FeatureCache(cache)
+    c2, c4, ct = full[n]
+    np.testing.assert_allclose(c2.numpy(), f2[0].numpy(), atol=2e-2, rtol=1e-2)
+    np.testing.assert_allclose(c4.numpy(), d4[0].numpy(), atol=2e-2, rtol=1e-2)
+    np.testing.assert_allclose(ct.numpy(), t["tip"].numpy(), atol=1e-3)
+    # A finished cache is not rewritten; a different recipe on the same directory is refused.
+    assert main(args) == 0
+    try:
+        main(args[:-6] + ["--crop", "96", "--passes", "2", "--batch", "2", "--workers", "0"])
+    except ValueError as e:
+        assert "cache was built with" in str(e)
+    else:
+        raise AssertionError("a cache of another crop size was reused")
+    sub = FeatureCache(cache, sub=64)
+    a2, a4, at = sub[0]
+    assert a2.shape[1:] == (32, 32) and a4.shape[1:] == (16, 16) and at.shape[1:] == (32, 32)
+    run = tmp_path / "run"
+    assert main(["train", "--base", str(MODELS / "phyllo.onnx"), "--data", str(root), "--cache", str(cache),
+                 "--out", str(run), "--steps", "2", "--batch", "2", "--crop", "128", "--workers", "0",
+                 "--ckpt-every", "2", "--val-images", "1", "--width", "16", "--sub-crop", "64"]) == 0
+    assert torch.load(run / "last.pt", weights_only=False)["width"] == 16
+    out = tmp_path / "tips16.onnx"
+    assert main(["export", "--base", str(MODELS / "phyllo.onnx"), "--head", str(run / "last.pt"),
+                 "--out", str(out), "--check-size", "128"]) == 0
+    assert len(ort.InferenceSession(str(out)).get_outputs()) == 4
