@@ -329,10 +329,69 @@ pub fn to_result(
         scale: canvas.scale,
         tiles: canvas.tiles.len() as u32,
         ms: StageTimings::default(),
+        tip_instances: pan.tip_segments(params.tip_reach),
         tips,
     }
 }
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::postprocess::Segment;
+    use crate::tips::{CountRule, TipPeak};
+    use image::RgbImage;
+    use phyllo_contract::LEAF;
+
+    #[test]
+    fn each_tip_names_the_leaf_it_joins_in_the_result() {
+        let (w, h) = (8usize, 4usize);
+        // Leaf 1 fills columns 0..4, leaf 2 columns 4..8 of row 0; rows 1.. are background.
+        let mut instance = vec![0u32; w * h];
+        let mut semantic = vec![0u8; w * h];
+        for x in 0..w {
+            instance[x] = if x < 4 { 1 } else { 2 };
+            semantic[x] = LEAF;
+        }
+        let seg = |id| Segment {
+            id,
+            class: LEAF,
+            area: 4,
+            bbox: [0, 0, 4, 1],
+            centre: [0.0, 0.0],
+            score: 1.0,
+        };
+        let tip = |x, y| TipPeak { x, y, score: 0.9 };
+        let pan = Panoptic {
+            height: h,
+            width: w,
+            semantic,
+            instance,
+            segments: vec![seg(1), seg(2)],
+            tips: Some(vec![tip(0, 0), tip(3, 0), tip(7, 3)]),
+        };
+        let canvas = Canvas {
+            image: RgbImage::new(16, 8),
+            scale: 1.0,
+            origin: [0, 0],
+            region: [0, 0, 16, 8],
+            plant: None,
+            tiles: vec![[0, 0]],
+        };
+        let params = PostprocessParams {
+            count_rule: CountRule::Split,
+            tip_reach: 0,
+            ..PostprocessParams::default()
+        };
+        let r = to_result(Contract::embedded(), &pan, &canvas, (16, 8), &params);
+        assert_eq!(r.tip_instances, vec![Some(1), Some(1), None]);
+        assert_eq!(r.tips.len(), 3);
+        // Leaf 1 holds two tips, leaf 2 none: split counts 2 + 1.
+        assert_eq!(r.leaf_count, 3);
+        let json = serde_json::to_value(&r).unwrap();
+        assert_eq!(json["tip_instances"], serde_json::json!([1, 1, null]));
+    }
 }

@@ -61,6 +61,11 @@ pub struct CountResult {
     /// Every tip inside the plant's box, whether or not it lies on a leaf.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub tips: Vec<[f32; 3]>,
+    /// For each of `tips`, the id of the leaf instance it joins (within the
+    /// tip reach) or `None`: what the `tips` and `split` count rules count,
+    /// so other rules can be scored offline from one run.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub tip_instances: Vec<Option<u32>>,
 }
 
 #[cfg(test)]
@@ -76,6 +81,7 @@ mod tests {
             scale: 0.5,
             tiles: 1,
             ms: StageTimings::default(),
+            tip_instances: vec![],
             tips,
         }
     }

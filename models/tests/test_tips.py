@@ -244,3 +244,23 @@ def test_cached_features_are_the_live_ones_and_train_a_wider_head(tmp_path, tiny
     assert main(["export", "--base", str(MODELS / "phyllo.onnx"), "--head", str(run / "last.pt"),
                  "--out", str(out), "--check-size", "128"]) == 0
     assert len(ort.InferenceSession(str(out)).get_outputs()) == 4
+
+
+def test_count_rules_score_split_variants_from_one_run(tmp_path):
+    from phyllo_train.count_rules import Rule, count, main as rules_main
+
+    leaf = lambda i, area: {"id": i, "class_name": "leaf", "area": area}  # noqa: E731
+    rec = {"file": "/x/a.png", "instances": [leaf(1, 50), leaf(2, 5000), {"id": 3, "class_name": "panicle", "area": 9}],
+           "tips": [[0, 0, 0.9], [1, 0, 0.6], [2, 0, 0.95], [3, 0, 0.9], [4, 0, 0.9], [5, 0, 0.9], [6, 0, 0.99]],
+           "tip_instances": [1, 1, 2, 2, 2, None, 3]}
+    assert count(rec, Rule("centres")) == 2
+    assert count(rec, Rule("split", 0.5)) == 2 + 3          # every tip on a leaf counts; the panicle's does not
+    assert count(rec, Rule("split", 0.7)) == 1 + 3          # 0.6 falls below the threshold
+    assert count(rec, Rule("split", 0.5, cap=2)) == 2 + 2
+    assert count(rec, Rule("split", 0.5, max_area=100)) == 2 + 1   # the large leaf may not split
+    assert count(rec, Rule("split", 0.99)) == 2              # no tips: each leaf still counts once
+    counts = tmp_path / "c.jsonl"
+    counts.write_text(json.dumps(rec) + "\n" + json.dumps({"file": "/x/b.png", "error": "corrupt"}) + "\n")
+    truth = tmp_path / "t.csv"
+    truth.write_text("file,leaf_count\na.png,4\nb.png,3\n")
+    assert rules_main(["--counts", str(counts), "--truth", str(truth), "--thresholds", "0.5", "--caps", "2"]) == 0
