@@ -259,6 +259,7 @@ def test_count_rules_score_split_variants_from_one_run(tmp_path):
     assert count(rec, Rule("split", 0.5, cap=2)) == 2 + 2
     assert count(rec, Rule("split", 0.5, max_area=100)) == 2 + 1   # the large leaf may not split
     assert count(rec, Rule("split", 0.99)) == 2              # no tips: each leaf still counts once
+    assert count(rec, Rule("split", 0.5, min_gap=1.5)) == 1 + 2   # (1,0) is 1 px from (0,0), (3,0) from (2,0)
     counts = tmp_path / "c.jsonl"
     counts.write_text(json.dumps(rec) + "\n" + json.dumps({"file": "/x/b.png", "error": "corrupt"}) + "\n")
     truth = tmp_path / "t.csv"
