@@ -321,15 +321,16 @@ pub fn to_result(
             [x, y, t.score]
         })
         .collect();
+    let tip_instances = pan.tip_segments(params.tip_reach);
     CountResult {
-        leaf_count: pan.leaf_count(params.count_rule, params.tip_reach) as u32,
+        leaf_count: pan.leaf_count_of(params.count_rule, &tip_instances) as u32,
         instances,
         image_size: [size.0, size.1],
         region: canvas.region,
         scale: canvas.scale,
         tiles: canvas.tiles.len() as u32,
         ms: StageTimings::default(),
-        tip_instances: pan.tip_segments(params.tip_reach),
+        tip_instances,
         tips,
     }
 }

@@ -140,17 +140,23 @@ impl Panoptic {
     /// The number of leaves under `rule`, tips joining leaves within `reach`
     /// output pixels. Without a tip map every rule counts the leaf segments.
     pub fn leaf_count(&self, rule: CountRule, reach: u32) -> usize {
+        self.leaf_count_of(rule, &self.tip_segments(reach))
+    }
+
+    /// [`Panoptic::leaf_count`] from tip segments already found with
+    /// [`Panoptic::tip_segments`], for a caller that keeps them too.
+    pub fn leaf_count_of(&self, rule: CountRule, tip_segments: &[Option<u32>]) -> usize {
         let centres = self.count(LEAF);
         if !self.has_tip_map() {
             return centres;
         }
         match rule {
             CountRule::Centres => centres,
-            CountRule::Tips => self.tip_segments(reach).iter().flatten().count(),
+            CountRule::Tips => tip_segments.iter().flatten().count(),
             CountRule::Split => {
                 let mut joined =
                     vec![0usize; self.segments.iter().map(|s| s.id as usize + 1).max().unwrap_or(1)];
-                for id in self.tip_segments(reach).into_iter().flatten() {
+                for &id in tip_segments.iter().flatten() {
                     joined[id as usize] += 1;
                 }
                 self.segments

@@ -36,6 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .tip_match import read_counts
+from .truth_rules import metrics
+
 
 NO_CAP = 1 << 30
 
@@ -80,13 +83,6 @@ def count(record: dict, rule: Rule) -> int:
     return total
 
 
-def metrics(truth: np.ndarray, pred: np.ndarray) -> dict[str, float]:
-    """Exact, within one, RMSE, MAE and bias (predicted minus true)."""
-    e = pred.astype(np.float64) - truth
-    return {"images": len(e), "exact": float(np.mean(e == 0)), "within_1": float(np.mean(np.abs(e) <= 1)),
-            "rmse": float(np.sqrt(np.mean(e ** 2))), "mae": float(np.mean(np.abs(e))), "bias": float(np.mean(e))}
-
-
 def read_truth(dataset: Path | None, split: str, truth_csv: Path | None) -> dict[str, int]:
     """``image file name -> true leaf count`` from a phyllo-gen manifest or a ``file,leaf_count`` CSV."""
     if truth_csv is not None:
@@ -96,18 +92,6 @@ def read_truth(dataset: Path | None, split: str, truth_csv: Path | None) -> dict
 
     rows = read_manifest(dataset, None if split == "all" else split)
     return {Path(r["image"]).name: int(r["visible_leaf_count"]) for r in rows}
-
-
-def read_counts(path: Path) -> dict[str, dict]:
-    """``image file name -> count --json record``; records with an error are left out."""
-    out = {}
-    with open(path, encoding="utf-8") as f:
-        for line in f:
-            if line.strip():
-                r = json.loads(line)
-                if "error" not in r:
-                    out[Path(r["file"]).name] = r
-    return out
 
 
 def default_rules(thresholds: list[float], caps: list[int], areas: list[float], gaps: list[float]) -> list[Rule]:
@@ -153,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     print("| rule | images | exact | within ±1 | RMSE | MAE | bias | right, centres wrong | wrong, centres right |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r, m in rows:
-        print(f"| {r.label()} | {m['images']} | {100 * m['exact']:.1f} % | {100 * m['within_1']:.1f} % | "
+        print(f"| {r.label()} | {m['images']} | {100 * m['exact']:.1f} % | {100 * m['within1']:.1f} % | "
               f"{m['rmse']:.3f} | {m['mae']:.3f} | {m['bias']:+.3f} | {m['fixed']} | {m['broken']} |")
     return 0
 

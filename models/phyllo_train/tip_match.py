@@ -54,6 +54,20 @@ def read_dataset_tips(root: Path, split: str) -> dict[str, np.ndarray]:
             for r in read_manifest(root, split)}
 
 
+def read_counts(path: Path) -> dict[str, dict]:
+    """``image file name -> record`` of ``phyllo count --json`` lines; an image that failed is reported and left out."""
+    out = {}
+    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+        if not line.strip():
+            continue
+        rec = json.loads(line)
+        if "error" in rec:
+            print(f"{path}:{n}: {rec['file']}: {rec['error']}", file=sys.stderr)
+            continue
+        out[Path(rec["file"]).name] = rec
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point: one row per radius, summed over the images both files name."""
     ap = argparse.ArgumentParser(prog="python -m phyllo_train.tip_match", description=__doc__,
@@ -66,15 +80,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--radius", type=float, action="append", help="match radius in image pixels (repeatable; default 6 12 24 40)")
     args = ap.parse_args(argv)
     marked = read_marked(args.tips) if args.tips else read_dataset_tips(args.dataset, args.split)
-    predicted: dict[str, np.ndarray] = {}
-    for n, line in enumerate(args.counts.read_text(encoding="utf-8").splitlines(), 1):
-        if not line.strip():
-            continue
-        rec = json.loads(line)
-        if "error" in rec:
-            print(f"{args.counts}:{n}: {rec['file']}: {rec['error']}", file=sys.stderr)
-            continue
-        predicted[Path(rec["file"]).name] = np.array([t[:2] for t in rec.get("tips", [])], np.float64)
+    predicted = {name: np.array([t[:2] for t in rec.get("tips", [])], np.float64).reshape(-1, 2)
+                 for name, rec in read_counts(args.counts).items()}
     files = sorted(set(marked) & set(predicted))
     if not files:
         print(f"no image of {args.counts} is in {args.tips or args.dataset}", file=sys.stderr)
