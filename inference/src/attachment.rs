@@ -30,8 +30,15 @@ const MIN_INSTANCE_SHARE: f32 = 0.5;
 /// Drops the instances of `pan` that lie apart from the plant. `canvas` is
 /// the image the model saw (`stride` input pixels per output pixel); gaps of
 /// up to `radius` output pixels between plant pixels are bridged. A radius of
-/// 0 disables the stage.
-pub fn keep_attached(pan: &mut Panoptic, canvas: &RgbImage, contract: &Contract, radius: u32) {
+/// 0 disables the stage. An instance mostly apart from the plant whose part
+/// on it is at least twice `min_leaf_area` is cut down to that part.
+pub fn keep_attached(
+    pan: &mut Panoptic,
+    canvas: &RgbImage,
+    contract: &Contract,
+    radius: u32,
+    min_leaf_area: u32,
+) {
     if radius == 0 || pan.segments.is_empty() {
         return;
     }
@@ -90,10 +97,35 @@ pub fn keep_attached(pan: &mut Panoptic, canvas: &RgbImage, contract: &Contract,
             inside[id] += 1;
         }
     }
+    // An instance mostly off the plant may still hold a leaf: the offset head
+    // sometimes sends a leaf's pixels and a bracket's to one centre. Its part
+    // on the plant is kept as the instance when that part is leaf-sized.
+    let trim_min = trim_min_area(min_leaf_area);
+    let trimmed: Vec<bool> = (0..=pan.segments.len())
+        .map(|id| {
+            id > 0 && (inside[id] as f32) < MIN_INSTANCE_SHARE * area[id] as f32 && inside[id] >= trim_min
+        })
+        .collect();
+    if trimmed.iter().any(|&t| t) {
+        for i in 0..w * h {
+            let id = pan.instance[i] as usize;
+            if trimmed[id] && !kept[body[i] as usize] {
+                pan.instance[i] = 0;
+            }
+        }
+        pan.refresh_extents();
+    }
     pan.retain(|seg| {
         let id = seg.id as usize;
-        inside[id] as f32 >= MIN_INSTANCE_SHARE * area[id] as f32
+        trimmed[id] || inside[id] as f32 >= MIN_INSTANCE_SHARE * area[id] as f32
     });
+}
+
+/// Smallest on-plant part (output pixels) of a mostly detached instance that
+/// is kept as a leaf: twice the smallest leaf, so a few pixels of a bracket
+/// that happen to touch the plant never count.
+fn trim_min_area(min_leaf_area: u32) -> u32 {
+    2 * min_leaf_area.max(1)
 }
 
 /// Square dilation of `mask` by `r` pixels (`L∞` distance at most `r`).
@@ -161,7 +193,7 @@ mod tests {
     #[test]
     fn drops_the_detached_grey_instance_and_keeps_the_leaves() {
         let (mut pan, img) = scene();
-        keep_attached(&mut pan, &img, Contract::embedded(), 3);
+        keep_attached(&mut pan, &img, Contract::embedded(), 3, 24);
         assert_eq!(pan.segments.len(), 2);
         assert!(pan.instance[..].iter().all(|&i| i <= 2));
         assert_eq!(pan.instance[5 * 40 + 4], 1);
@@ -169,10 +201,51 @@ mod tests {
         assert_eq!(pan.instance[39], 0, "the bracket's pixels are cleared");
     }
 
+    /// `scene` with a 48-pixel bracket whose instance (3) also takes a
+    /// 24-pixel leaf touching the stem: a third of the instance on the plant.
+    fn bracket_sharing_a_leaf() -> (Panoptic, RgbImage) {
+        let (mut pan, mut img) = scene();
+        let w = pan.width;
+        let mut paint = |x0: usize, x1: usize, y0: usize, y1: usize, rgb: [u8; 3]| {
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    pan.semantic[y * w + x] = 1;
+                    pan.instance[y * w + x] = 3;
+                    for (dy, dx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                        img.put_pixel((2 * x + dx) as u32, (2 * y + dy) as u32, image::Rgb(rgb));
+                    }
+                }
+            }
+        };
+        paint(28, 40, 0, 4, [150, 150, 150]);
+        paint(4, 10, 12, 16, [60, 120, 40]);
+        (pan, img)
+    }
+
+    #[test]
+    fn a_leaf_sharing_an_instance_with_a_bracket_keeps_its_part_on_the_plant() {
+        let (mut pan, img) = bracket_sharing_a_leaf();
+        keep_attached(&mut pan, &img, Contract::embedded(), 3, 12);
+        assert_eq!(pan.segments.len(), 3, "the leaf part survives");
+        assert_eq!(pan.instance[39], 0, "the bracket's pixels are cleared");
+        assert_eq!(pan.instance[12 * 40 + 4], 3);
+        assert_eq!(pan.segments[2].area, 24);
+        assert_eq!(pan.segments[2].bbox, [4, 12, 10, 16]);
+    }
+
+    #[test]
+    fn a_sliver_of_a_detached_instance_on_the_plant_is_not_kept() {
+        // 24 pixels on the plant are less than twice a 13-pixel smallest leaf.
+        let (mut pan, img) = bracket_sharing_a_leaf();
+        keep_attached(&mut pan, &img, Contract::embedded(), 3, 13);
+        assert_eq!(pan.segments.len(), 2);
+        assert!(pan.instance.iter().all(|&i| i <= 2));
+    }
+
     #[test]
     fn radius_zero_keeps_everything() {
         let (mut pan, img) = scene();
-        keep_attached(&mut pan, &img, Contract::embedded(), 0);
+        keep_attached(&mut pan, &img, Contract::embedded(), 0, 24);
         assert_eq!(pan.segments.len(), 3);
     }
 
@@ -186,7 +259,7 @@ mod tests {
                 img.put_pixel(x, y, image::Rgb([60, 120, 40]));
             }
         }
-        keep_attached(&mut pan, &img, Contract::embedded(), 3);
+        keep_attached(&mut pan, &img, Contract::embedded(), 3, 24);
         assert_eq!(pan.segments.len(), 3);
     }
 

@@ -256,7 +256,13 @@ impl Counter {
         let (cw, ch) = canvas.image.dimensions();
         let raw = stitch(&outputs, &canvas.tiles, cw, ch, c.outputs.stride);
         let mut pan = panoptic(&raw, c, &self.config.postprocess);
-        keep_attached(&mut pan, &canvas.image, c, self.config.postprocess.attach_radius);
+        keep_attached(
+            &mut pan,
+            &canvas.image,
+            c,
+            self.config.postprocess.attach_radius,
+            self.config.postprocess.min_leaf_area,
+        );
         if let Some([x0, y0, x1, y1]) = canvas.plant {
             // The chamber's frames and panels sometimes look leaf-like to the
             // model; an instance centred outside the plant's box is not a leaf.

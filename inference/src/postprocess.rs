@@ -162,6 +162,31 @@ impl Panoptic {
         self.segments = kept;
     }
 
+    /// Recomputes each segment's area and box from the instance map, after
+    /// pixels were taken from it.
+    pub fn refresh_extents(&mut self) {
+        let mut ext = vec![(0u32, [u32::MAX, u32::MAX, 0u32, 0u32]); self.segments.len() + 1];
+        for y in 0..self.height {
+            for x in 0..self.width {
+                let id = self.instance[y * self.width + x] as usize;
+                if id == 0 {
+                    continue;
+                }
+                let (area, b) = &mut ext[id];
+                *area += 1;
+                let (x, y) = (x as u32, y as u32);
+                *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
+            }
+        }
+        for seg in &mut self.segments {
+            let (area, bbox) = ext[seg.id as usize];
+            seg.area = area;
+            if area > 0 {
+                seg.bbox = bbox;
+            }
+        }
+    }
+
     /// Number of instances of `class`.
     pub fn count(&self, class: u8) -> usize {
         self.segments.iter().filter(|s| s.class == class).count()
