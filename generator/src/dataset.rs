@@ -89,6 +89,12 @@ pub struct Row {
     /// written before this field existed.
     #[serde(default)]
     pub leaf_tips: std::collections::BTreeMap<u16, [f32; 2]>,
+    /// Distance in image pixels from each leaf's projected tip (clamped into
+    /// the image) to its apparent tip in `leaf_tips`: near 0 when the tip can
+    /// be seen, large when it is hidden (see [`crate::tips::tip_gaps`]).
+    /// Empty in datasets written before this field existed.
+    #[serde(default)]
+    pub leaf_tip_gaps: std::collections::BTreeMap<u16, f32>,
 }
 
 /// This build's `Row::generator` value.
@@ -243,7 +249,7 @@ fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) 
             )?;
         }
         let leaf_pixels = out.label.leaf_pixels();
-        let leaf_tips = tips::leaf_tips(&plant, &scene, &camera, window, &out.label);
+        let (leaf_tips, leaf_tip_gaps) = tips::leaf_tips(&plant, &scene, &camera, window, &out.label);
         let row = Row {
             image,
             label,
@@ -261,6 +267,7 @@ fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) 
             frame: [camera.width, camera.height],
             generator: generator_id(),
             leaf_tips,
+            leaf_tip_gaps,
         };
         png_io::write_atomic(
             &meta_path(&args.out, p, view),

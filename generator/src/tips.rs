@@ -131,16 +131,49 @@ fn nearer(best: &mut Option<(f64, [f32; 2])>, centre: [f64; 2], to: [f64; 2]) {
     }
 }
 
-/// The manifest's `leaf_tips` for one rendered view: [`projected_tips`]
-/// resolved against the view's label by [`apparent_tips`].
+/// How far each apparent tip lies from its leaf's projected tip, in image
+/// pixels: 0 where the label shows the leaf at the projected tip, small where
+/// the blade thins out below a pixel or runs out of the image (the projected
+/// tip is first clamped into the `width` x `height` image, so a tip cut by
+/// the image's edge counts as seen there, as annotators count cut tips), and
+/// large where something hides the tip. Instances whose tip does not project
+/// get no entry. Human annotators count leaves by the tips they can see; this
+/// lets a dataset's truth follow that rule (`phyllo eval --truth-tip-gap`).
+pub fn tip_gaps(
+    projected: &BTreeMap<u16, Option<[f32; 2]>>,
+    apparent: &BTreeMap<u16, [f32; 2]>,
+    width: u32,
+    height: u32,
+) -> BTreeMap<u16, f32> {
+    apparent
+        .iter()
+        .filter_map(|(inst, tip)| {
+            let p = projected.get(inst).copied().flatten()?;
+            let q = [p[0].clamp(0.0, width as f32), p[1].clamp(0.0, height as f32)];
+            let gap = if p == *tip {
+                0.0
+            } else {
+                ((q[0] - tip[0]).powi(2) + (q[1] - tip[1]).powi(2)).sqrt()
+            };
+            Some((*inst, gap))
+        })
+        .collect()
+}
+
+/// The manifest's `leaf_tips` and `leaf_tip_gaps` for one rendered view:
+/// [`projected_tips`] resolved against the view's label by [`apparent_tips`],
+/// and [`tip_gaps`] between the two.
 pub fn leaf_tips(
     plant: &Plant,
     scene: &Scene,
     camera: &Camera,
     window: Window,
     label: &LabelImage,
-) -> BTreeMap<u16, [f32; 2]> {
-    apparent_tips(label, &projected_tips(plant, scene, camera, window))
+) -> (BTreeMap<u16, [f32; 2]>, BTreeMap<u16, f32>) {
+    let projected = projected_tips(plant, scene, camera, window);
+    let tips = apparent_tips(label, &projected);
+    let gaps = tip_gaps(&projected, &tips, label.width, label.height);
+    (tips, gaps)
 }
 
 #[cfg(test)]
@@ -197,6 +230,26 @@ mod tests {
             t.keys().collect::<Vec<_>>(),
             l.leaf_pixels().keys().collect::<Vec<_>>()
         );
+    }
+
+    #[test]
+    fn tip_gaps_are_zero_on_the_leaf_small_at_the_edge_and_large_when_hidden() {
+        // Leaf 1's tip is on the leaf; leaf 2's is hidden by leaf 3 four
+        // pixels from leaf 2's last pixel; leaf 3 runs off the right edge and
+        // its tip lies far outside; leaf 4 does not project.
+        let l = label(&["1........", "222233333", "4........"]);
+        let p = BTreeMap::from([
+            (1, Some([0.5, 0.5])),
+            (2, Some([7.5, 1.5])),
+            (3, Some([40.0, 1.5])),
+            (4, None),
+        ]);
+        let t = apparent_tips(&l, &p);
+        let g = tip_gaps(&p, &t, l.width, l.height);
+        assert_eq!(g[&1], 0.0);
+        assert_eq!(g[&2], 4.0, "tip at x 7.5, leaf 2 ends at the centre 3.5");
+        assert_eq!(g[&3], 0.5, "clamped to the edge x 9, the last centre is 8.5");
+        assert!(!g.contains_key(&4));
     }
 
     #[test]

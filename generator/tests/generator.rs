@@ -554,7 +554,7 @@ fn leaf_tips_lie_on_their_leaves_and_visible_tips_are_the_far_ends() {
             let q = Quality { spp: 1, max_depth: 1 };
             let out = render::render(&scene, &camera, &look, window, q, 1).unwrap();
             let label = &out.label;
-            let tips = tips::leaf_tips(&plant, &scene, &camera, window, label);
+            let (tips, gaps) = tips::leaf_tips(&plant, &scene, &camera, window, label);
             let projected = tips::projected_tips(&plant, &scene, &camera, window);
             let pixels = label.leaf_pixels();
             assert_eq!(
@@ -599,6 +599,13 @@ fn leaf_tips_lie_on_their_leaves_and_visible_tips_are_the_far_ends() {
                 let blocked = scene
                     .hit(camera.position, to_tip.normalize())
                     .is_some_and(|hit| hit.t < to_tip.length() - 1e-3);
+                let q = [p[0].clamp(0.0, w as f32), p[1].clamp(0.0, h as f32)];
+                let gap = if t == p { 0.0 } else { dist(q, t) };
+                assert!(
+                    (gaps[&k] - gap).abs() < 1e-3,
+                    "{ctx}: gap {} against {gap}",
+                    gaps[&k]
+                );
                 if blocked || !in_image(p) {
                     hidden += 1;
                     continue;

@@ -8,7 +8,14 @@ the same predictions, and the metrics against every visible leaf by plant
 age (seedlings are where counting is hardest)::
 
     phyllo eval --dataset DIR --split val --per-image > per_image.txt
-    python -m phyllo_train.truth_rules --dataset DIR per_image.txt
+    python -m phyllo_train.truth_rules --dataset DIR per_image.txt [--tip-gaps 4,8,16]
+
+``--tip-gaps`` adds the rule human annotators follow on the real frames
+(``leaf_tips.csv``: a leaf counts when its tip is seen, or cut by the image's
+edge): truth is the number of leaves whose tip gap (the manifest's
+``leaf_tip_gaps``, the distance from the projected blade tip to the nearest
+pixel of that leaf; phyllo-gen since session 15) is at most each given number
+of image pixels.
 """
 
 from __future__ import annotations
@@ -48,13 +55,16 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dataset", type=Path, required=True, help="the phyllo-gen dataset that was evaluated")
     ap.add_argument("per_image", type=Path, help="saved output of phyllo eval --per-image")
+    ap.add_argument("--tip-gaps", default="", help="comma-separated largest tip gaps (image pixels) for the "
+                    "visible-tip rule, e.g. 4,8,16")
     args = ap.parse_args(argv)
+    gap_limits = [float(g) for g in args.tip_gaps.split(",") if g.strip()]
     with open(args.per_image, encoding="utf-8") as f:
         scored = parse_per_image(f)
     if not scored:
         raise SystemExit(f"{args.per_image}: no per-image lines (was --per-image given?)")
     by_image = {str(args.dataset / r["image"]): r for r in read_manifest(args.dataset)}
-    countable, visible, pred, age = [], [], [], []
+    countable, visible, pred, age, gaps = [], [], [], [], []
     for path, (t, p) in scored.items():
         row = by_image.get(path) or by_image.get(str(Path(path)))
         if row is None:
@@ -63,10 +73,18 @@ def main(argv: list[str] | None = None) -> int:
         visible.append(int(row["visible_leaf_count"]))
         pred.append(p)
         age.append(float(row.get("age_days", "nan")))
+        if gap_limits:
+            if not row.get("leaf_tip_gaps") and int(row["visible_leaf_count"]) > 0:
+                raise SystemExit(f"{path}: the manifest has no leaf_tip_gaps (written before phyllo-gen had them); "
+                                 "regenerate the dataset")
+            gaps.append(list(row.get("leaf_tip_gaps", {}).values()))
     pred_a = np.asarray(pred)
+    rules = [("as phyllo eval ran (--truth-min-pixels)", countable), ("every visible leaf", visible)]
+    rules += [(f"leaves whose tip is seen (tip gap <= {g:g} px)", [sum(x <= g for x in gs) for gs in gaps])
+              for g in gap_limits]
     print("| truth rule | images | exact | within ±1 | RMSE | MAE | bias |")
     print("|---|---:|---:|---:|---:|---:|---:|")
-    for name, t in (("as phyllo eval ran (--truth-min-pixels)", countable), ("every visible leaf", visible)):
+    for name, t in rules:
         m = metrics(np.asarray(t), pred_a)
         print(f"| {name} | {m['images']} | {100 * m['exact']:.1f}% | {100 * m['within1']:.1f}% | "
               f"{m['rmse']:.3f} | {m['mae']:.3f} | {m['bias']:+.3f} |")
