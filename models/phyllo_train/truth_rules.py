@@ -88,6 +88,13 @@ def main(argv: list[str] | None = None) -> int:
         m = metrics(np.asarray(t), pred_a)
         print(f"| {name} | {m['images']} | {100 * m['exact']:.1f}% | {100 * m['within1']:.1f}% | "
               f"{m['rmse']:.3f} | {m['mae']:.3f} | {m['bias']:+.3f} |")
+    if gap_limits:
+        all_gaps = np.asarray([g for gs in gaps for g in gs], dtype=np.float64)
+        if all_gaps.size:
+            q = np.quantile(all_gaps, [0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
+            print()
+            print(f"tip gaps of {all_gaps.size} leaves (px): 10th / 25th / 50th / 75th / 90th / 95th percentile "
+                  + " / ".join(f"{v:.1f}" for v in q))
     age_a, vis_a = np.asarray(age), np.asarray(visible)
     print()
     print("| plant age (days), every visible leaf | images | exact | within ±1 | RMSE | MAE | bias |")

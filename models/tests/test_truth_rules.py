@@ -38,6 +38,7 @@ def test_tip_gap_rule_counts_leaves_whose_tip_is_seen(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "| leaves whose tip is seen (tip gap <= 4 px) | 2 | 100.0% | 100.0% | 0.000 | 0.000 | +0.000 |" in out
     assert "| leaves whose tip is seen (tip gap <= 30 px) | 2 | 50.0% | 100.0% | 0.707 | 0.500 | -0.500 |" in out
+    assert "tip gaps of 3 leaves (px)" in out and "/ 3.5 /" in out
 
 
 def test_tip_gap_rule_refuses_a_manifest_without_gaps(tmp_path):
