@@ -16,6 +16,9 @@
 # Budget: the machine's start counts, a call may run 10 minutes and a session
 # has 15; generation runs at roughly 8x this machine's 2-core speed.
 #
+# To train the leaf-tip head with every layer at once (MODEL.md, next steps
+# item 00), add `--tips --max-tip-gap 8` to TRAIN_ARGS: the data made here has
+# leaf_tips and leaf_tip_gaps, and the exports then have the fourth output.
 # Environment (defaults in brackets): PLANTS [1200], SEED [100: no training or
 # test set uses it], PRESETS [the stage-4 mix, a fifth maize], STEPS [4000],
 # BATCH [16], CROP [512], LR [1e-4], DEVICE [cuda], WORKERS [14],

@@ -73,7 +73,7 @@ class PanopticDataset(Dataset):
 
     def __init__(self, root: str | Path, split: str | None = "train", aug: AugmentConfig | None = None,
                  contract: Contract | None = None, seed: int = 0, limit: int | None = None,
-                 small_center_weight: float = 1.0, with_tips: bool = False):
+                 small_center_weight: float = 1.0, with_tips: bool = False, max_tip_gap: float | None = None):
         self.root = Path(root)
         self.contract = contract or load_contract()
         self.rows = read_manifest(self.root, split)[: limit]
@@ -88,6 +88,12 @@ class PanopticDataset(Dataset):
             missing = [r["image"] for r in self.rows if "leaf_tips" not in r]
             if missing:
                 raise ValueError(f"{self.root / 'manifest.jsonl'}: {len(missing)} rows have no leaf_tips "
+                                 f"(first: {missing[0]}); render the set with a phyllo-gen that writes them")
+        self.max_tip_gap = max_tip_gap
+        if with_tips and max_tip_gap is not None:
+            missing = [r["image"] for r in self.rows if r.get("leaf_tips") and "leaf_tip_gaps" not in r]
+            if missing:
+                raise ValueError(f"{self.root / 'manifest.jsonl'}: {len(missing)} rows have no leaf_tip_gaps "
                                  f"(first: {missing[0]}); render the set with a phyllo-gen that writes them")
 
     def set_epoch(self, epoch: int) -> None:
@@ -110,7 +116,12 @@ class PanopticDataset(Dataset):
         if cfg.crop is None:
             # Full tiles: crop back to the original size so H, W stay multiples of 32.
             cfg = AugmentConfig(**{**cfg.__dict__, "crop": min(label.shape) // 32 * 32})
-        tips = np.array(list(row.get("leaf_tips", {}).values()), np.float64).reshape(-1, 2)
+        tip_items = row.get("leaf_tips", {}).items()
+        if self.with_tips and self.max_tip_gap is not None:
+            # A tip far from anything the image shows of its leaf is hidden: no target for it.
+            gaps = row.get("leaf_tip_gaps", {})
+            tip_items = [(k, v) for k, v in tip_items if gaps.get(k, 0.0) <= self.max_tip_gap]
+        tips = np.array([v for _, v in tip_items], np.float64).reshape(-1, 2)
         rgb, label, window, tips = augment(img, label, cfg, rng, top_view=is_top_view(row),
                                            label_divisor=self.contract.label_divisor,
                                            zoom=(self.contract.zoom_plant_height, self.contract.max_zoom),

@@ -20,7 +20,7 @@ import onnx
 import torch
 
 from .contract import Contract, load_contract
-from .model import architecture_kwargs, build_model, count_parameters
+from .model import TipHead, TipNet, architecture_kwargs, build_model, count_parameters
 
 OPSET = 17
 
@@ -125,7 +125,11 @@ def check_onnx(path: str | Path, model: torch.nn.Module, contract: Contract, *, 
 def load_checkpoint_model(path: str | Path, contract: Contract) -> tuple[torch.nn.Module, dict]:
     """Build the network and load weights from a training checkpoint; returns (model, checkpoint)."""
     ckpt = torch.load(str(path), map_location="cpu", weights_only=False)
-    model = build_model(contract.num_classes, seed=None, **architecture_kwargs(ckpt.get("args")))
+    args = ckpt.get("args") or {}
+    model = build_model(contract.num_classes, seed=None, **architecture_kwargs(args))
+    if args.get("tips"):
+        c_stem, c_dec = model.feature_channels
+        model = TipNet(model, TipHead(c_dec=c_dec, c_stem=c_stem, width=int(args.get("tip_width", 32))))
     model.load_state_dict(ckpt["model"])
     return model, ckpt
 
@@ -158,8 +162,10 @@ def main(argv: list[str] | None = None) -> int:
         data = args.training_data or ckpt.get("training_data", "unknown")
         trained = True
         extra["phyllo.train_steps"] = str(ckpt.get("step", ""))
-    path = export_onnx(model, args.out, contract, model_name=name, trained=trained, training_data=data, extra_meta=extra)
-    errs = check_onnx(path, model, contract, size=args.check_size)
+    names = contract.output_names_with_tip if isinstance(model, TipNet) else contract.output_names
+    path = export_onnx(model, args.out, contract, model_name=name, trained=trained, training_data=data,
+                       extra_meta=extra, output_names=names)
+    errs = check_onnx(path, model, contract, size=args.check_size, output_names=names)
     size_mb = path.stat().st_size / 1e6
     print(f"wrote {path} ({size_mb:.2f} MB, {count_parameters(model)} params, contract v{contract.version}, "
           f"trained={trained}); ORT vs torch max abs diff: " + ", ".join(f"{k}={v:.2e}" for k, v in errs.items()))

@@ -48,3 +48,16 @@ def panoptic_loss(outputs: tuple[torch.Tensor, torch.Tensor, torch.Tensor], targ
     total = w.semantic * l_sem + w.center * l_cen + w.offset * l_off
     parts = {"loss": total, "sem": l_sem, "center": l_cen, "offset": l_off}
     return total, {k: float(v.detach()) for k, v in parts.items()}
+
+
+def tip_focal_loss(logits: torch.Tensor, target: torch.Tensor, alpha: float = 2.0, beta: float = 4.0) -> torch.Tensor:
+    """CenterNet's penalty-reduced focal loss (Zhou et al., 2019), normalised by the number of tips.
+
+    ``target`` peaks are exactly 1 (targets.gaussian_heatmap); pixels near a
+    peak are penalised less for firing, by ``(1 - target) ** beta``.
+    """
+    p = torch.sigmoid(logits).clamp(1e-4, 1 - 1e-4)
+    pos = target.ge(1.0 - 1e-6).float()
+    pos_loss = -torch.log(p) * (1 - p) ** alpha * pos
+    neg_loss = -torch.log(1 - p) * p ** alpha * (1 - target) ** beta * (1 - pos)
+    return (pos_loss.sum() + neg_loss.sum()) / pos.sum().clamp_min(1.0)

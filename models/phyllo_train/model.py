@@ -150,6 +150,8 @@ class PhylloNet(nn.Module):
         self.instance_stride = instance_stride
         c2, c4, c8, c16, c32 = width
         d16, d8, d4, d2 = dec
+        # Channels of :meth:`features`' two outputs, which a tip head reads.
+        self.feature_channels = (c2, d4)
         self.offset_scale = offset_scale
         self.stem = nn.Sequential(conv_bn(3, c2, 3, stride=2), SepConv(c2, c2))  # stride 2
         self.s4 = _stage(c2, c4, 2, 2, expand=3)  # expand 3: this stage runs at the largest size
@@ -250,8 +252,13 @@ class TipNet(nn.Module):
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """x: normalised NCHW float32, H and W multiples of 32."""
+        sem, center, offset, tip = self.raw(x)
+        return sem, center, offset, torch.sigmoid(tip)
+
+    def raw(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """As :meth:`forward` with the tip as logits, which the focal loss needs (training)."""
         f2, d4 = self.base.features(x)
-        return (*self.base.heads(f2, d4), torch.sigmoid(self.head(f2, d4)))
+        return (*self.base.heads(f2, d4), self.head(f2, d4))
 
 
 DEFAULT_DEC = (64, 48, 32, 24)

@@ -40,21 +40,9 @@ from .contract import Contract, load_contract
 from .dataset import PanopticDataset
 from .export import check_onnx, export_onnx
 from .from_onnx import has_tip_output, load_folded
+from .losses import tip_focal_loss
 from .model import PhylloNet, TipHead, TipNet, build_model, count_parameters
 from .tip_cache import FeatureCache, build as build_cache
-
-
-def tip_focal_loss(logits: torch.Tensor, target: torch.Tensor, alpha: float = 2.0, beta: float = 4.0) -> torch.Tensor:
-    """CenterNet's penalty-reduced focal loss (Zhou et al., 2019), normalised by the number of tips.
-
-    ``target`` peaks are exactly 1 (targets.gaussian_heatmap); pixels near a
-    peak are penalised less for firing, by ``(1 - target) ** beta``.
-    """
-    p = torch.sigmoid(logits).clamp(1e-4, 1 - 1e-4)
-    pos = target.ge(1.0 - 1e-6).float()
-    pos_loss = -torch.log(p) * (1 - p) ** alpha * pos
-    neg_loss = -torch.log(1 - p) * p ** alpha * (1 - target) ** beta * (1 - pos)
-    return (pos_loss.sum() + neg_loss.sum()) / pos.sum().clamp_min(1.0)
 
 
 def load_base(path: str | Path, contract: Contract) -> PhylloNet:

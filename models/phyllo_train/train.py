@@ -7,6 +7,11 @@ RUN_DIR gets ``last.pt`` (every ``--ckpt-every`` steps and at the end),
 ``--keep-every N`` a ``step-NNNNNN.pt`` every N steps.
 Re-running the same command resumes from ``last.pt``. Export with
 ``python -m phyllo_train.export --checkpoint RUN_DIR/best.pt --out models/NAME.onnx``.
+
+``--tips`` trains the leaf-tip head (:mod:`phyllo_train.tips`) together with
+the network, every layer at once, and the export then has the contract's
+fourth output; ``--init`` still takes a plain network's checkpoint (the head
+starts fresh, or from ``--init-tip-head``, a ``tips train`` checkpoint).
 """
 
 from __future__ import annotations
@@ -30,8 +35,8 @@ from .augment import AugmentConfig
 from .contract import load_contract
 from .dataset import PanopticDataset, read_label, read_manifest
 from .ema import ModelEma
-from .losses import LossWeights, panoptic_loss
-from .model import build_model, count_parameters, grow_state
+from .losses import LossWeights, panoptic_loss, tip_focal_loss
+from .model import TipHead, TipNet, build_model, count_parameters, grow_state
 from .postprocess import decode, label_leaf_count
 
 
@@ -77,6 +82,9 @@ def _widths(text: str) -> tuple[int, ...]:
 
 def init_weights(model: torch.nn.Module, state: dict) -> list[str]:
     """Loads ``state`` into ``model``, allowing only keys the state lacks and growing narrower layers; returns the missing keys."""
+    if isinstance(model, TipNet) and not any(k.startswith("base.") for k in state):
+        # A plain network's checkpoint initialises the tip network's base.
+        state = {f"base.{k}": v for k, v in state.items()}
     try:
         state = grow_state(model, state)
     except ValueError as e:
@@ -115,6 +123,21 @@ def save_atomic(obj: dict, path: Path) -> None:
     os.replace(tmp, path)
 
 
+def forward_losses(model: torch.nn.Module, xs: torch.Tensor, ts: dict[str, torch.Tensor], w: LossWeights,
+                   tip_weight: float) -> tuple[tuple[torch.Tensor, ...], torch.Tensor, dict[str, float]]:
+    """The model's outputs (the tip, if any, as logits), the total loss and its parts for logging."""
+    if isinstance(model, TipNet):
+        out = model.raw(xs)
+        loss, parts = panoptic_loss(out[:3], ts, w)
+        l_tip = tip_focal_loss(out[3], ts["tip"])
+        loss = loss + tip_weight * l_tip
+        parts.update(loss=float(loss.detach()), tip=float(l_tip.detach()))
+        return out, loss, parts
+    out = model(xs)
+    loss, parts = panoptic_loss(out, ts, w)
+    return out, loss, parts
+
+
 def set_train_mode(model: torch.nn.Module, freeze_bn: bool) -> None:
     """Training mode; with ``freeze_bn`` every BatchNorm stays in eval mode (running statistics, no updates)."""
     model.train()
@@ -126,7 +149,7 @@ def set_train_mode(model: torch.nn.Module, freeze_bn: bool) -> None:
 
 @torch.no_grad()
 def evaluate(model: torch.nn.Module, ds: PanopticDataset, device: torch.device, w: LossWeights,
-             batch: int) -> dict[str, float]:
+             batch: int, tip_weight: float = 1.0) -> dict[str, float]:
     """Validation losses on full tiles plus leaf-count agreement against the labels."""
     model.eval()
     contract = ds.contract
@@ -137,8 +160,7 @@ def evaluate(model: torch.nn.Module, ds: PanopticDataset, device: torch.device, 
         xs, ts = collate([ds[j] for j in range(i, min(len(ds), i + batch))])
         xs = xs.to(device).contiguous(memory_format=torch.channels_last)
         ts = {k: v.to(device) for k, v in ts.items()}
-        out = model(xs)
-        _, parts = panoptic_loss(out, ts, w)
+        out, _, parts = forward_losses(model, xs, ts, w, tip_weight)
         for k, v in parts.items():
             sums[k] += v * len(xs)
         for b in range(len(xs)):
@@ -195,6 +217,16 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--freeze-bn", action="store_true",
                     help="keep BatchNorm statistics fixed (eval mode) while training: for fine-tuning with "
                          "small batches, where batch statistics make training mode a different function")
+    ap.add_argument("--tips", action="store_true",
+                    help="train the leaf-tip head with the network (needs leaf_tips in the manifests); "
+                         "the export has the contract's tip output")
+    ap.add_argument("--tip-weight", type=float, default=1.0, help="weight of the tip focal loss (with --tips)")
+    ap.add_argument("--tip-width", type=int, default=32, help="tip head channels (with --tips)")
+    ap.add_argument("--init-tip-head", type=Path, default=None,
+                    help="start the tip head from a `python -m phyllo_train.tips train` checkpoint (with --tips)")
+    ap.add_argument("--max-tip-gap", type=float, default=None,
+                    help="with --tips: no tip target for leaves whose manifest leaf_tip_gaps exceeds this many "
+                         "image pixels (hidden tips, which annotators do not mark)")
     ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     ap.add_argument("--threads", type=int, default=2, help="torch intra-op threads (CPU)")
     ap.add_argument("--workers", type=int, default=1, help="data loader worker processes")
@@ -217,6 +249,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Train; returns a process exit code."""
     args = build_parser().parse_args(argv)
+    if not args.tips and (args.init_tip_head is not None or args.max_tip_gap is not None):
+        raise SystemExit("--init-tip-head and --max-tip-gap need --tips")
     contract = load_contract()
     if args.center_sigma is not None:
         if args.center_sigma <= 0:
@@ -235,13 +269,18 @@ def main(argv: list[str] | None = None) -> int:
     aug = AugmentConfig(crop=args.crop or None)
     if not args.crop:
         aug.scale = (1.0, 1.0)  # full tiles: keep the contract's tile size exactly
-    train_sets = [PanopticDataset(d, "train", aug, contract, seed=args.seed, limit=args.limit,
-                                  small_center_weight=args.small_center_weight) for d in args.data]
+    try:
+        train_sets = [PanopticDataset(d, "train", aug, contract, seed=args.seed, limit=args.limit,
+                                      small_center_weight=args.small_center_weight, with_tips=args.tips,
+                                      max_tip_gap=args.max_tip_gap) for d in args.data]
+    except ValueError as e:
+        raise SystemExit(str(e)) from e
     train_ds = train_sets[0] if len(train_sets) == 1 else ConcatDataset(train_sets)
     val_ds = None
     if args.val_limit:
         try:
-            val_ds = PanopticDataset(args.data[0], "val", AugmentConfig.none(), contract, limit=args.val_limit)
+            val_ds = PanopticDataset(args.data[0], "val", AugmentConfig.none(), contract, limit=args.val_limit,
+                                     with_tips=args.tips, max_tip_gap=args.max_tip_gap)
         except ValueError:
             print("note: no val split; validation disabled", file=sys.stderr)
     per_epoch = len(train_ds) // args.batch
@@ -252,7 +291,12 @@ def main(argv: list[str] | None = None) -> int:
     # channels_last: ~2.5x faster depthwise conv / BN training on CPU (oneDNN), also good on GPUs.
     mem = torch.channels_last
     model = build_model(contract.num_classes, seed=args.seed, instance_stride=args.instance_stride,
-                        dec=args.dec, ins_width=args.ins_width).to(device, memory_format=mem)
+                        dec=args.dec, ins_width=args.ins_width)
+    if args.tips:
+        torch.manual_seed(args.seed)
+        c_stem, c_dec = model.feature_channels
+        model = TipNet(model, TipHead(c_dec=c_dec, c_stem=c_stem, width=args.tip_width))
+    model = model.to(device, memory_format=mem)
     ema = ModelEma(model, args.ema) if args.ema > 0 else None
     # No weight decay on BN parameters and biases (standard practice for small nets).
     decay = [p for n, p in model.named_parameters() if p.ndim > 1]
@@ -269,6 +313,10 @@ def main(argv: list[str] | None = None) -> int:
         training_data += " | BatchNorm statistics frozen"
     if args.small_center_weight != 1.0:
         training_data += f" | small-instance centre weight {args.small_center_weight:g}"
+    if args.tips:
+        training_data += f" | tip head (width {args.tip_width}) trained jointly, weight {args.tip_weight:g}"
+        if args.max_tip_gap is not None:
+            training_data += f", tips with a gap over {args.max_tip_gap:g} px left out"
 
     step, best = 0, float("inf")
     last = args.out / "last.pt"
@@ -292,6 +340,15 @@ def main(argv: list[str] | None = None) -> int:
         if new_layers:
             print(f"initialised without the checkpoint: {', '.join(sorted({k.split('.')[0] for k in new_layers}))}")
         print(f"initialised from {args.init} (its step {ck['step']})")
+    if args.init_tip_head is not None and not (last.exists() and not args.no_resume):
+        head_ck = torch.load(args.init_tip_head, map_location=device, weights_only=False)
+        if int(head_ck.get("width", 32)) != args.tip_width:
+            raise SystemExit(f"{args.init_tip_head}: tip head width {head_ck.get('width', 32)}, "
+                             f"asked for --tip-width {args.tip_width}")
+        for m in (model, ema.module if ema is not None else None):
+            if m is not None:
+                m.head.load_state_dict(head_ck["head"])
+        print(f"tip head from {args.init_tip_head} (its step {head_ck.get('step', '?')})")
     (args.out / "args.json").write_text(json.dumps({k: str(v) if isinstance(v, Path) else v
                                                     for k, v in vars(args).items()}, indent=1, default=str))
     print(f"{count_parameters(model)} params; {len(train_ds)} train images, {per_epoch} steps/epoch, "
@@ -328,7 +385,7 @@ def main(argv: list[str] | None = None) -> int:
                 g["lr"] = lr_at(step, total, args.lr, args.warmup)
             xs = xs.to(device, non_blocking=True).contiguous(memory_format=mem)
             ts = {k: v.to(device, non_blocking=True) for k, v in ts.items()}
-            loss, parts = panoptic_loss(model(xs), ts, weights)
+            _, loss, parts = forward_losses(model, xs, ts, weights, args.tip_weight)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), 5.0)
@@ -344,8 +401,9 @@ def main(argv: list[str] | None = None) -> int:
                 rate = imgs_since / max(1e-9, now - t_last)
                 t_last, imgs_since = now, 0
                 eta = (total - step) * args.batch / max(rate, 1e-9)
+                tip = f" tip {run_avg['tip']:.3f}" if "tip" in run_avg else ""
                 msg = (f"step {step}/{total} ep {epoch} | loss {run_avg['loss']:.4f} (sem {run_avg['sem']:.4f} "
-                       f"ctr {run_avg['center']:.5f} off {run_avg['offset']:.3f}) | {rate:.1f} img/s | "
+                       f"ctr {run_avg['center']:.5f} off {run_avg['offset']:.3f}{tip}) | {rate:.1f} img/s | "
                        f"lr {opt.param_groups[0]['lr']:.2e} | eta {int(eta // 60)}m{int(eta % 60):02d}s")
                 print(("\r" + msg) if tty else msg, end="" if tty else "\n", flush=True)
                 log.write(json.dumps({"step": step, "epoch": epoch, "rate": rate, **run_avg}) + "\n")
@@ -355,7 +413,8 @@ def main(argv: list[str] | None = None) -> int:
             if args.keep_every and step % args.keep_every == 0:
                 checkpoint(args.out / f"step-{step:06d}.pt")
             if val_ds is not None and (step % args.val_every == 0 or step == total):
-                res = evaluate(ema.module if ema is not None else model, val_ds, device, weights, args.batch)
+                res = evaluate(ema.module if ema is not None else model, val_ds, device, weights, args.batch,
+                               args.tip_weight)
                 set_train_mode(model, args.freeze_bn)
                 if tty:
                     print()

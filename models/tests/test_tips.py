@@ -5,6 +5,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+import onnx
 import onnxruntime as ort
 import torch
 from PIL import Image
@@ -265,3 +266,44 @@ def test_count_rules_score_split_variants_from_one_run(tmp_path):
     truth = tmp_path / "t.csv"
     truth.write_text("file,leaf_count\na.png,4\nb.png,3\n")
     assert rules_main(["--counts", str(counts), "--truth", str(truth), "--thresholds", "0.5", "--caps", "2"]) == 0
+
+
+def test_joint_training_trains_every_head_and_exports_four_outputs(tmp_path, tiny_dataset, contract):
+    """`train --tips`: the network and a tip head together, from a plain run's checkpoint, then the
+    4-output export; hidden tips (--max-tip-gap) get no target, and need leaf_tip_gaps."""
+    from phyllo_train import export as export_mod
+    from phyllo_train import train as train_mod
+
+    root = _with_tips(tiny_dataset, tmp_path)
+    common = ["--data", str(root), "--crop", "64", "--batch", "2", "--workers", "0", "--val-limit", "1",
+              "--val-every", "1", "--log-every", "1", "--warmup", "1", "--steps", "1"]
+    plain = tmp_path / "plain"
+    assert train_mod.main(common + ["--out", str(plain)]) == 0
+    joint = tmp_path / "joint"
+    assert train_mod.main(common + ["--out", str(joint), "--tips", "--tip-width", "16",
+                                    "--init", str(plain / "last.pt")]) == 0
+    log = [json.loads(line) for line in (joint / "log.jsonl").read_text().splitlines()]
+    assert np.isfinite(log[0]["tip"]) and np.isfinite(log[-1]["val_tip"])
+    ck = torch.load(joint / "last.pt", weights_only=False)
+    start = torch.load(plain / "last.pt", weights_only=False)["raw_model"]
+    moved = [k for k, v in start.items() if v.is_floating_point() and not torch.equal(ck["raw_model"][f"base.{k}"], v)]
+    assert moved, "the base network trained too"
+    out = tmp_path / "joint.onnx"
+    assert export_mod.main(["--checkpoint", str(joint / "last.pt"), "--out", str(out), "--check-size", "64"]) == 0
+    assert [o.name for o in onnx.load(str(out)).graph.output] == list(contract.output_names_with_tip)
+
+    # --max-tip-gap refuses a manifest without gaps, and drops the tips beyond it.
+    try:
+        train_mod.main(common + ["--out", str(tmp_path / "nogaps"), "--tips", "--max-tip-gap", "4"])
+    except SystemExit as e:
+        assert "leaf_tip_gaps" in str(e)
+    else:
+        raise AssertionError("a manifest without leaf_tip_gaps was accepted")
+    rows = [json.loads(line) for line in (root / "manifest.jsonl").read_text().splitlines()]
+    for r in rows:  # every tip but the first is hidden
+        r["leaf_tip_gaps"] = {k: (0.0 if i == 0 else 50.0) for i, k in enumerate(r["leaf_tips"])}
+    (root / "manifest.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    aug = AugmentConfig.none()
+    kept = PanopticDataset(root, "val", aug, contract, with_tips=True, max_tip_gap=4.0)[0][1]["tip"]
+    every = PanopticDataset(root, "val", aug, contract, with_tips=True)[0][1]["tip"]
+    assert int((kept >= 1.0).sum()) <= 1 < int((every >= 1.0).sum())
