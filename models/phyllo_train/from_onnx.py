@@ -194,6 +194,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--images", type=int, default=96, help="images for --calibrate")
     ap.add_argument("--batch", type=int, default=3, help="calibration batch size: the fine-tuning run's --batch")
     ap.add_argument("--crop", type=int, default=448, help="calibration crop side: the fine-tuning run's --crop")
+    ap.add_argument("--head-out", type=Path, default=None,
+                    help="with a tip model: also write its tip head as a `phyllo_train.tips train` checkpoint "
+                         "(for `train --tips --init-tip-head`)")
     ap.add_argument("--contract", default=None, help="contract.toml (default: models/contract.toml)")
     args = ap.parse_args(argv)
 
@@ -218,6 +221,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"from_onnx: the rebuilt model does not compute what {args.onnx} does: {e}", file=sys.stderr)
         return 1
     meta = {p.key: p.value for p in onnx.load(str(args.onnx)).metadata_props}
+    if args.head_out is not None:
+        if not tip:
+            print(f"from_onnx: {args.onnx} has no tip output, so no head for --head-out", file=sys.stderr)
+            return 2
+        args.head_out.parent.mkdir(parents=True, exist_ok=True)
+        torch.save({"head": net.head.state_dict(), "width": net.head.out.in_channels,
+                    "step": int(meta.get("phyllo.tip_head_steps", 0) or 0), "from_onnx": str(args.onnx)},
+                   args.head_out)
     state = model.state_dict()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     torch.save({

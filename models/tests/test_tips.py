@@ -149,9 +149,19 @@ def test_training_then_export_keeps_the_base_outputs_exactly(tmp_path, tiny_data
     with torch.no_grad():
         for a, b in zip(load_base(out, contract)(t), load_base(MODELS / "phyllo.onnx", contract)(t)):
             assert float((a - b).abs().max()) < 1e-4
-    assert from_onnx_main([str(out), "--out", str(tmp_path / "rebuilt.pt")]) == 0
+    assert from_onnx_main([str(out), "--out", str(tmp_path / "rebuilt.pt"), "--head-out", str(tmp_path / "head.pt")]) == 0
     assert set(torch.load(tmp_path / "rebuilt.pt", weights_only=False)["model"]) == set(
         load_base(MODELS / "phyllo.onnx", contract).state_dict())
+    # --head-out: the tip head as a `tips train` checkpoint, computing the exported tip map.
+    head_ck = torch.load(tmp_path / "head.pt", weights_only=False)
+    assert head_ck["width"] == 32 and head_ck["step"] == 2
+    head = TipHead(width=head_ck["width"])
+    head.load_state_dict(head_ck["head"])
+    with torch.no_grad():
+        tip = TipNet(load_base(out, contract), head).eval()(t)[3].numpy()
+    np.testing.assert_allclose(tip, got[3], atol=1e-4)
+    assert from_onnx_main([str(MODELS / "phyllo.onnx"), "--out", str(tmp_path / "r2.pt"),
+                           "--head-out", str(tmp_path / "none.pt")]) == 2
 
 
 def test_frozen_base_is_the_onnx_model(contract):
