@@ -97,16 +97,17 @@ pub fn keep_attached(
             inside[id] += 1;
         }
     }
+    let attached: Vec<bool> = (0..=pan.segments.len())
+        .map(|id| inside[id] as f32 >= MIN_INSTANCE_SHARE * area[id] as f32)
+        .collect();
     // An instance mostly off the plant may still hold a leaf: the offset head
     // sometimes sends a leaf's pixels and a bracket's to one centre. Its part
     // on the plant is kept as the instance when that part is leaf-sized.
     let trim_min = trim_min_area(min_leaf_area);
     let trimmed: Vec<bool> = (0..=pan.segments.len())
-        .map(|id| {
-            id > 0 && (inside[id] as f32) < MIN_INSTANCE_SHARE * area[id] as f32 && inside[id] >= trim_min
-        })
+        .map(|id| id > 0 && !attached[id] && inside[id] >= trim_min)
         .collect();
-    if trimmed.iter().any(|&t| t) {
+    if trimmed.contains(&true) {
         for i in 0..w * h {
             let id = pan.instance[i] as usize;
             if trimmed[id] && !kept[body[i] as usize] {
@@ -115,10 +116,7 @@ pub fn keep_attached(
         }
         pan.refresh_extents();
     }
-    pan.retain(|seg| {
-        let id = seg.id as usize;
-        trimmed[id] || inside[id] as f32 >= MIN_INSTANCE_SHARE * area[id] as f32
-    });
+    pan.retain(|seg| attached[seg.id as usize] || trimmed[seg.id as usize]);
 }
 
 /// Smallest on-plant part (output pixels) of a mostly detached instance that

@@ -165,19 +165,7 @@ impl Panoptic {
     /// Recomputes each segment's area and box from the instance map, after
     /// pixels were taken from it.
     pub fn refresh_extents(&mut self) {
-        let mut ext = vec![(0u32, [u32::MAX, u32::MAX, 0u32, 0u32]); self.segments.len() + 1];
-        for y in 0..self.height {
-            for x in 0..self.width {
-                let id = self.instance[y * self.width + x] as usize;
-                if id == 0 {
-                    continue;
-                }
-                let (area, b) = &mut ext[id];
-                *area += 1;
-                let (x, y) = (x as u32, y as u32);
-                *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
-            }
-        }
+        let ext = extents(&self.instance, self.width, self.segments.len());
         for seg in &mut self.segments {
             let (area, bbox) = ext[seg.id as usize];
             seg.area = area;
@@ -246,6 +234,22 @@ pub fn find_peaks(heat: &Array2<f32>, threshold: f32, kernel: u32, top_k: usize)
     peaks
 }
 
+/// Area and box `[x0, y0, x1, y1]` (exclusive ends) of instances 0..=`n` in a
+/// row-major instance map `width` pixels wide; an absent instance has area 0.
+fn extents(instance: &[u32], width: usize, n: usize) -> Vec<(u32, [u32; 4])> {
+    let mut ext = vec![(0u32, [u32::MAX, u32::MAX, 0u32, 0u32]); n + 1];
+    for (i, &id) in instance.iter().enumerate() {
+        if id == 0 {
+            continue;
+        }
+        let (area, b) = &mut ext[id as usize];
+        *area += 1;
+        let (x, y) = ((i % width) as u32, (i / width) as u32);
+        *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
+    }
+    ext
+}
+
 /// Runs the whole post-processing on `out`.
 pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParams) -> Panoptic {
     let (h, w) = out.dim();
@@ -304,43 +308,17 @@ pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParam
         }
     }
 
-    // Per-instance statistics.
-    struct Acc {
-        area: u32,
-        bbox: [u32; 4],
-        prob_sum: f32,
-    }
-    let mut acc: Vec<Acc> = (0..k)
-        .map(|_| Acc {
-            area: 0,
-            bbox: [u32::MAX, u32::MAX, 0, 0],
-            prob_sum: 0.0,
-        })
-        .collect();
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let id = instance[i];
-            if id == 0 {
-                continue;
-            }
-            let a = &mut acc[id as usize - 1];
-            a.area += 1;
-            a.prob_sum += prob[i];
-            let (x, y) = (x as u32, y as u32);
-            a.bbox = [
-                a.bbox[0].min(x),
-                a.bbox[1].min(y),
-                a.bbox[2].max(x + 1),
-                a.bbox[3].max(y + 1),
-            ];
-        }
+    // Per-instance statistics: area and box, and the class probability sum for the score.
+    let ext = extents(&instance, w, k);
+    let mut prob_sum = vec![0f32; k + 1];
+    for (i, &id) in instance.iter().enumerate() {
+        prob_sum[id as usize] += prob[i];
     }
     // Keep instances above the minimum area; renumber densely in score order.
     let mut renumber = vec![0u32; k + 1];
     let mut segments = Vec::new();
-    for (j, a) in acc.iter().enumerate() {
-        if a.area < params.min_leaf_area.max(1) {
+    for (j, &(area, bbox)) in ext.iter().enumerate().skip(1).map(|(id, e)| (id - 1, e)) {
+        if area < params.min_leaf_area.max(1) {
             continue;
         }
         let class = class_votes[j]
@@ -355,10 +333,10 @@ pub fn panoptic(out: &RawOutputs, contract: &Contract, params: &PostprocessParam
         segments.push(Segment {
             id,
             class,
-            area: a.area,
-            bbox: a.bbox,
+            area,
+            bbox,
             centre: [px as f32, py as f32],
-            score: peak.min(1.0) * a.prob_sum / a.area as f32,
+            score: peak.min(1.0) * prob_sum[j + 1] / area as f32,
         });
     }
     for v in instance.iter_mut() {

@@ -20,7 +20,7 @@ import onnx
 import torch
 
 from .contract import Contract, load_contract
-from .model import TipHead, TipNet, architecture_kwargs, build_model, count_parameters
+from .model import TipNet, architecture_kwargs, build_model, count_parameters, with_tip_head
 
 OPSET = 17
 
@@ -128,8 +128,7 @@ def load_checkpoint_model(path: str | Path, contract: Contract) -> tuple[torch.n
     args = ckpt.get("args") or {}
     model = build_model(contract.num_classes, seed=None, **architecture_kwargs(args))
     if args.get("tips"):
-        c_stem, c_dec = model.feature_channels
-        model = TipNet(model, TipHead(c_dec=c_dec, c_stem=c_stem, width=int(args.get("tip_width", 32))))
+        model = with_tip_head(model, int(args.get("tip_width", 32)))
     model.load_state_dict(ckpt["model"])
     return model, ckpt
 

@@ -261,6 +261,19 @@ class TipNet(nn.Module):
         return (*self.base.heads(f2, d4), self.head(f2, d4))
 
 
+def with_tip_head(base: PhylloNet, width: int = 32, seed: int | None = None) -> TipNet:
+    """``base`` with a fresh tip head of ``width`` channels that fits its features; with ``seed`` the
+    head's initial weights are deterministic (the global RNG is left as it was)."""
+    c_stem, c_dec = base.feature_channels
+    state = torch.random.get_rng_state()
+    if seed is not None:
+        torch.manual_seed(seed)
+    head = TipHead(c_dec=c_dec, c_stem=c_stem, width=width)
+    if seed is not None:
+        torch.random.set_rng_state(state)
+    return TipNet(base, head)
+
+
 DEFAULT_DEC = (64, 48, 32, 24)
 
 

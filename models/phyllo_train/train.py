@@ -36,7 +36,7 @@ from .contract import load_contract
 from .dataset import PanopticDataset, read_label, read_manifest
 from .ema import ModelEma
 from .losses import LossWeights, panoptic_loss, tip_focal_loss
-from .model import TipHead, TipNet, build_model, count_parameters, grow_state
+from .model import TipNet, build_model, count_parameters, grow_state, with_tip_head
 from .postprocess import decode, label_leaf_count
 
 
@@ -293,9 +293,7 @@ def main(argv: list[str] | None = None) -> int:
     model = build_model(contract.num_classes, seed=args.seed, instance_stride=args.instance_stride,
                         dec=args.dec, ins_width=args.ins_width)
     if args.tips:
-        torch.manual_seed(args.seed)
-        c_stem, c_dec = model.feature_channels
-        model = TipNet(model, TipHead(c_dec=c_dec, c_stem=c_stem, width=args.tip_width))
+        model = with_tip_head(model, args.tip_width, seed=args.seed)
     model = model.to(device, memory_format=mem)
     ema = ModelEma(model, args.ema) if args.ema > 0 else None
     # No weight decay on BN parameters and biases (standard practice for small nets).
