@@ -23,7 +23,9 @@ row() { # label, key in models/eval-sets.tsv, then phyllo eval arguments
   want=$(awk -F'\t' -v k="$key" '$1 == k {print $2; exit}' "$sets")
   if [ "$got" = "$want" ]; then check="$got (as recorded)"; else check="$got (DIFFERS from ${want:-nothing recorded}: not comparable with models/MODEL.md)"; fi
   echo "$out" | awk -v l="$label" -v c="$check" '/^\| images/ {getline; getline; sub(/^\|/, ""); print "| " l " |" $0 " " c " |"; exit}'
+  intervals+=("$(echo "$out" | sed -n 's/^95 % intervals[^:]*: exact \([^;]*\); within ±1 \([^;]*\); RMSE \([^;]*\); MAE [^;]*; bias \(.*\)$/| '"$label"' | \1 | \2 | \3 | \4 |/p')")
 }
+intervals=()
 echo "model: $("$bin" eval --threads 1 --model "$model" --counts "$dev/leaf_tips.csv" --images "$dev/images" 2>/dev/null | awk '/^model/ {print $2; exit}')"
 echo
 echo "| set | n | exact | within ±1 | RMSE | MAE | bias | R² | data (models/eval-sets.tsv) |"
@@ -31,3 +33,9 @@ echo "|---|---:|---:|---:|---:|---:|---:|---:|---|"
 row "synthetic frames, $(basename "$test")" "$(basename "$test")/val" --dataset "$test" --split val
 row "real full frames" real-frames --counts "$dev/leaf_tips.csv" --images "$dev/images"
 row "real crops" real-crops --counts "$dev/crops_counts.csv" --images "$dev/crops"
+echo
+echo "95 % intervals (Wilson for exact and ±1; bootstrap over images for RMSE and bias; printed by phyllo eval):"
+echo
+echo "| set | exact | within ±1 | RMSE | bias |"
+echo "|---|---|---|---|---|"
+printf '%s\n' "${intervals[@]}"

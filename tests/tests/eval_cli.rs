@@ -153,6 +153,29 @@ fn evaluates_real_images_with_human_counts() {
         .map(|r| r[2].as_u64().unwrap())
         .sum();
     assert_eq!(confusion_total, 10);
+    // Ten images pin little down: the intervals hold the point estimates and are wide.
+    for (metric, share) in [
+        ("exact", true),
+        ("within_1", true),
+        ("rmse", false),
+        ("bias", false),
+    ] {
+        let (lo, hi) = (
+            v["intervals"][metric]["lo"].as_f64().unwrap(),
+            v["intervals"][metric]["hi"].as_f64().unwrap(),
+        );
+        let point = v["metrics"][metric].as_f64().unwrap();
+        assert!(
+            lo <= point && point <= hi,
+            "{metric}: {point} outside [{lo}, {hi}]"
+        );
+        if share {
+            assert!(
+                hi - lo > 0.2 && (0.0..=1.0).contains(&lo) && hi <= 1.0,
+                "{metric}: [{lo}, {hi}]"
+            );
+        }
+    }
 }
 
 #[test]

@@ -12,6 +12,7 @@ use serde_json::json;
 use super::count::{overlay_path, render_overlay};
 use super::counter_args::CounterArgs;
 use crate::evaluation::fingerprint::Fingerprint;
+use crate::evaluation::intervals::MetricIntervals;
 use crate::evaluation::leaf_errors::LeafErrors;
 use crate::evaluation::metrics::{confusion, confusion_table, per_view, CountMetrics, CountPair};
 use crate::evaluation::segmentation::{panoptic_quality, LeafMatch, Overlaps, PixelMap};
@@ -193,6 +194,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 
     let metrics = CountMetrics::of(&pairs);
     let views = per_view(&pairs);
+    let intervals = MetricIntervals::of(&pairs);
     let seg = (!matches.is_empty()).then(|| {
         let miou = matches.iter().map(|m| m.mean_iou).sum::<f64>() / matches.len() as f64;
         (miou, panoptic_quality(&matches))
@@ -212,6 +214,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             "source": title,
             "fingerprint": fingerprint.hex(),
             "metrics": metrics,
+            "intervals": intervals,
             "per_view": views,
             "confusion": conf,
             "failed": failed,
@@ -270,6 +273,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         println!("| images | exact | within ±1 | RMSE | MAE | bias | R² |");
         println!("|---:|---:|---:|---:|---:|---:|---:|");
         print_row(&metrics);
+        if let Some(i) = &intervals {
+            println!("\n{}", i.line());
+        }
         if let Some((miou, pq)) = seg {
             println!("\nmean leaf IoU per image (stem lenient) {miou:.3}\nleaf panoptic quality {pq:.3}");
             println!(

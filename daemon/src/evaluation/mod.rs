@@ -3,6 +3,7 @@
 //! path as the daemon.
 
 pub mod fingerprint;
+pub mod intervals;
 pub mod leaf_errors;
 pub mod metrics;
 pub mod plots;
