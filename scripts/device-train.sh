@@ -24,7 +24,9 @@
 # BATCH [16], CROP [512], LR [1e-4], DEVICE [cuda], WORKERS [14],
 # INIT [.device/init.pt], TRAIN_ARGS [--freeze-bn; models/MODEL.md, "Why every
 # fine-tune of s10 lost", says what --small-center-weight does to each set],
-# OUT_DIR [$OUT], WORK [/tmp/phyllo-device], PYTHON [python3], GEN [.device/phyllo-gen].
+# OUT_DIR [$OUT], WORK [/tmp/phyllo-device], PYTHON [python3], GEN [.device/phyllo-gen],
+# GEN_ARGS [--dead-remnants 0.5: half the plants keep their dead leaves' dried
+# sheaths and blade stubs, labelled stem; models/MODEL.md, next steps].
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 plants=${PLANTS:-1200}
@@ -49,8 +51,9 @@ echo "device-train: $(date -u +%FT%TZ), $(nproc) cores"
 t0=$(date +%s)
 data=$work/train-s$seed
 if [ ! -e "$data/manifest.jsonl" ]; then
+  # shellcheck disable=SC2086 # GEN_ARGS is a word list
   "$gen" dataset --out "$data" --plants "$plants" --seed "$seed" --views 0,36,72,108,144 \
-    --full-frame --val-fraction 0.03 --preset "$presets" --quiet
+    --full-frame --val-fraction 0.03 --preset "$presets" --quiet ${GEN_ARGS---dead-remnants 0.5}
 fi
 echo "device-train: $(wc -l <"$data/manifest.jsonl") pairs in $(( $(date +%s) - t0 )) s"
 
@@ -63,7 +66,7 @@ t1=$(date +%s)
   --batch "${BATCH:-16}" --device "${DEVICE:-cuda}" --workers "${WORKERS:-14}" \
   --val-every "$keep" --ckpt-every "$keep" --keep-every "$keep" --log-every 50 --seed "$seed" \
   ${TRAIN_ARGS---freeze-bn} \
-  --data-note "scripts/device-train.sh: phyllo-gen dataset --plants $plants --seed $seed --preset $presets")
+  --data-note "scripts/device-train.sh: phyllo-gen dataset --plants $plants --seed $seed --preset $presets ${GEN_ARGS---dead-remnants 0.5}")
 echo "device-train: trained in $(( $(date +%s) - t1 )) s"
 
 # At most 8 files come back from the device tool: the log, best and four kept steps.

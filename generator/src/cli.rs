@@ -57,6 +57,10 @@ enum Command {
         /// Also write human-viewable colour masks to masks/.
         #[arg(long)]
         masks: bool,
+        /// Share of plants whose dead leaves leave a dried sheath and a blade
+        /// stub (labelled stem); overrides every preset's `dead_remnant_chance`.
+        #[arg(long)]
+        dead_remnants: Option<f32>,
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
@@ -105,6 +109,10 @@ enum Command {
         /// Also write panoptic labels to labels/.
         #[arg(long)]
         labels: bool,
+        /// Share of plants whose dead leaves leave a dried sheath and a blade
+        /// stub (labelled stem); overrides every preset's `dead_remnant_chance`.
+        #[arg(long)]
+        dead_remnants: Option<f32>,
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
@@ -147,6 +155,9 @@ enum Command {
         /// Output RGB PNG; the label goes beside it as `.label.png`, the mask as `.mask.png`.
         #[arg(long)]
         out: PathBuf,
+        /// Leave dead leaves' remnants (dried sheath, blade stub) on the plant.
+        #[arg(long)]
+        dead_remnants: bool,
     },
     /// Export a plant mesh as OBJ (one group per leaf).
     Mesh {
@@ -229,6 +240,19 @@ pub fn parse_presets(s: Option<&str>) -> anyhow::Result<Vec<Preset>> {
     }
 }
 
+/// Sets every preset's `dead_remnant_chance` to `chance` when it is given.
+fn with_dead_remnants(mut presets: Vec<Preset>, chance: Option<f32>) -> anyhow::Result<Vec<Preset>> {
+    if let Some(p) = chance {
+        if !(0.0..=1.0).contains(&p) {
+            bail!("--dead-remnants {p} must lie in [0, 1]");
+        }
+        for preset in &mut presets {
+            preset.growth.dead_remnant_chance = p;
+        }
+    }
+    Ok(presets)
+}
+
 /// Loads one `--preset` entry: a name or path, optionally `:WEIGHT` to
 /// override the preset's mixing weight (so `maize:0.5` mixes in maize, whose
 /// built-in weight is 0).
@@ -281,6 +305,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             shard,
             spp,
             masks,
+            dead_remnants,
             quiet,
         } => {
             if !(16..=4096).contains(&size) {
@@ -297,7 +322,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 size,
                 full_frame,
                 val_fraction,
-                presets: parse_presets(preset.as_deref())?,
+                presets: with_dead_remnants(parse_presets(preset.as_deref())?, dead_remnants)?,
                 shard: parse_shard(&shard)?,
                 quality: quality(spp)?,
                 masks,
@@ -317,6 +342,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             preset,
             spp,
             labels,
+            dead_remnants,
             quiet,
         } => {
             check_age(start_age).context("--start-age")?;
@@ -330,7 +356,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 interval,
                 views: parse_views(&views)?,
                 frame_height,
-                presets: parse_presets(preset.as_deref())?,
+                presets: with_dead_remnants(parse_presets(preset.as_deref())?, dead_remnants)?,
                 quality: quality(spp)?,
                 labels,
                 quiet,
@@ -355,9 +381,11 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             frame_height,
             spp,
             out,
+            dead_remnants,
         } => {
             check_age(age)?;
-            let preset = Preset::load(&preset)?;
+            let preset =
+                with_dead_remnants(vec![Preset::load(&preset)?], dead_remnants.then_some(1.0))?.remove(0);
             let view = View::parse(&view).context("--view")?;
             let traits = PlantTraits::sample(&preset, seed);
             let plant = Plant::build(&traits, age);
@@ -477,5 +505,11 @@ mod tests {
         let err = format!("{:#}", parse_presets(Some("maize:-1")).unwrap_err());
         assert!(err.contains("weight"), "{err}");
         assert!(parse_presets(Some("nosuch:1")).is_err());
+        let kept = with_dead_remnants(parse_presets(Some("btx623,maize:1")).unwrap(), Some(0.25)).unwrap();
+        assert!(kept.iter().all(|p| p.growth.dead_remnant_chance == 0.25));
+        let default = with_dead_remnants(parse_presets(Some("maize")).unwrap(), None).unwrap();
+        assert_eq!(default[0].growth.dead_remnant_chance, 0.0);
+        let err = format!("{:#}", with_dead_remnants(default, Some(1.5)).unwrap_err());
+        assert!(err.contains("--dead-remnants 1.5"), "{err}");
     }
 }

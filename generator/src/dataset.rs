@@ -95,6 +95,15 @@ pub struct Row {
     /// Empty in datasets written before this field existed.
     #[serde(default)]
     pub leaf_tip_gaps: std::collections::BTreeMap<u16, f32>,
+    /// Dead leaves whose remnants (dried sheath, blade stub, labelled stem)
+    /// are on the plant; see the preset's `dead_remnant_chance`. Omitted when
+    /// 0, so manifests without remnants read as before.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub dead_remnants: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// This build's `Row::generator` value.
@@ -268,6 +277,7 @@ fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) 
             generator: generator_id(),
             leaf_tips,
             leaf_tip_gaps,
+            dead_remnants: plant.state.remnants.len(),
         };
         png_io::write_atomic(
             &meta_path(&args.out, p, view),

@@ -79,6 +79,9 @@ pub struct PlantTraits {
     /// colour, as on most real maize and sorghum: the model must learn that a
     /// green tube hugging the stem is stem, not a leaf of its own.
     pub green_sheaths: bool,
+    /// Whether dead leaves leave a dried sheath and a blade stub (stem) behind
+    /// instead of vanishing; see the preset's `dead_remnant_chance`.
+    pub dead_remnants: bool,
 }
 
 /// State of one leaf on one day.
@@ -118,6 +121,10 @@ pub struct PlantState {
     pub age_days: f32,
     /// Living leaves (emerged and not dead), bottom to top.
     pub leaves: Vec<LeafState>,
+    /// What is left of dead leaves when the plant keeps remnants
+    /// ([`PlantTraits::dead_remnants`]): each a dried sheath and a short,
+    /// hanging blade stub, meshed as stem. Empty otherwise.
+    pub remnants: Vec<LeafState>,
     /// Leaves whose tip has appeared so far (living or dead).
     pub emerged: usize,
     /// Height of the stem top (whorl).
@@ -249,6 +256,8 @@ impl PlantTraits {
             panicle,
             sheath_flare,
             green_sheaths,
+            // A stream of its own: with the chance at 0 every plant is drawn as before.
+            dead_remnants: rng::stream(seed, "dead-remnants", 0).chance(g.dead_remnant_chance),
         };
         traits.apply_rank_angle(per_rank.to_radians());
         traits
@@ -309,6 +318,7 @@ impl PlantTraits {
             }
         }
         let mut leaves = Vec::new();
+        let mut remnants = Vec::new();
         let mut emerged = 0;
         for (i, leaf) in self.leaves.iter().enumerate() {
             if t < leaf.emergence_day {
@@ -316,6 +326,9 @@ impl PlantTraits {
             }
             emerged += 1;
             if t >= leaf.death_day {
+                if self.dead_remnants {
+                    remnants.push(remnant(i, leaf, nodes[i], collar[i]));
+                }
                 continue;
             }
             let p = progress[i];
@@ -348,11 +361,34 @@ impl PlantTraits {
         PlantState {
             age_days,
             leaves,
+            remnants,
             emerged,
             stem_height,
             stem_radius,
             panicle,
         }
+    }
+}
+
+/// The remnant of dead leaf `rank`: its sheath stays from node to collar and
+/// the blade has broken off a short way out, the stub shrivelled (narrow) and
+/// hanging. Its size and dryness vary from leaf to leaf with the leaf's wave
+/// phase, a uniform trait, so that no random draw is added.
+fn remnant(rank: usize, leaf: &LeafTraits, node: f32, collar: f32) -> LeafState {
+    let v = leaf.wave_phase / (2.0 * PI);
+    LeafState {
+        rank,
+        progress: 1.0,
+        length: leaf.length * (0.06 + 0.14 * v),
+        furl: 0.0,
+        senescence: 0.55 + 0.3 * (1.0 - v),
+        base_height: collar,
+        node_height: node,
+        sheath_length: collar - node,
+        insertion: (leaf.insertion + 0.3).min(1.45),
+        droop: 1.6,
+        kink: 0.0,
+        width_scale: 0.35 + 0.2 * v,
     }
 }
 

@@ -79,15 +79,40 @@ fn control_points(base: Vec3, out: Vec3, side: Vec3, traits: &LeafTraits, state:
     pts
 }
 
-/// Appends one leaf blade (class leaf, instance `instance`) to `mesh` and
-/// returns its tip: the end of the midrib (u = 1), where the width profile
-/// is zero, so every vertex of the blade's last mesh row sits there.
+/// The label a blade's triangles carry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BladeLabel {
+    /// Contract class.
+    pub class: u8,
+    /// Instance (0 for stem).
+    pub instance: u16,
+}
+
+impl BladeLabel {
+    /// A dead leaf's remnant: part of the stem, not a leaf to count.
+    pub const STEM: BladeLabel = BladeLabel {
+        class: phyllo_contract::STEM,
+        instance: 0,
+    };
+
+    /// A living leaf, instance `instance`.
+    pub fn leaf(instance: u16) -> Self {
+        Self {
+            class: phyllo_contract::LEAF,
+            instance,
+        }
+    }
+}
+
+/// Appends one leaf blade labelled `label` to `mesh` and returns its tip:
+/// the end of the midrib (u = 1), where the width profile is zero, so every
+/// vertex of the blade's last mesh row sits there.
 pub fn blade(
     mesh: &mut Mesh,
     traits: &LeafTraits,
     state: &LeafState,
     stem_radius: f32,
-    instance: u16,
+    label: BladeLabel,
     material: u16,
 ) -> Vec3 {
     let (s, c) = traits.azimuth.sin_cos();
@@ -152,8 +177,8 @@ pub fn blade(
         let u = (r as f32 + 0.5) / BLADE_SEGMENTS as f32;
         let local = (senescence * 1.8 - (1.0 - u) * 0.8).clamp(0.0, 1.0);
         TriInfo {
-            class: phyllo_contract::LEAF,
-            instance,
+            class: label.class,
+            instance: label.instance,
             material,
             senescence: local,
         }

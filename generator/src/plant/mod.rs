@@ -47,6 +47,28 @@ impl Plant {
         } else {
             materials::STEM
         };
+        for leaf in &state.remnants {
+            // Dead sheaths dry whatever colour they had alive.
+            leaf::sheath(
+                &mut mesh,
+                leaf,
+                leaf::SheathShape {
+                    stem_radius: state.stem_radius,
+                    // Inside the living sheaths, so overlapping tubes never coincide.
+                    layer: -0.5,
+                    flare: traits.sheath_flare,
+                },
+                materials::LEAF,
+            );
+            leaf::blade(
+                &mut mesh,
+                &traits.leaves[leaf.rank],
+                leaf,
+                state.stem_radius,
+                leaf::BladeLabel::STEM,
+                materials::LEAF,
+            );
+        }
         for (k, leaf) in state.leaves.iter().enumerate() {
             leaf::sheath(
                 &mut mesh,
@@ -70,7 +92,7 @@ impl Plant {
                 &traits.leaves[leaf.rank],
                 leaf,
                 state.stem_radius,
-                instance,
+                leaf::BladeLabel::leaf(instance),
                 materials::LEAF,
             ));
         }
@@ -203,5 +225,56 @@ mod tests {
             assert_eq!(plant.leaf_tip(0), None);
             assert_eq!(plant.leaf_tip(plant.leaf_count() as u16 + 1), None);
         }
+    }
+
+    #[test]
+    fn dead_leaf_remnants_add_dry_stem_and_leave_the_living_leaves_alone() {
+        let mut preset = Preset::load("maize").unwrap();
+        let plain_traits = PlantTraits::sample(&preset, 3);
+        assert!(
+            !plain_traits.dead_remnants,
+            "the built-in presets keep remnants off"
+        );
+        preset.growth.dead_remnant_chance = 1.0;
+        let traits = PlantTraits::sample(&preset, 3);
+        assert!(traits.dead_remnants);
+        // Its own random stream: every other trait is drawn as before.
+        assert_eq!(
+            format!("{:?}", traits.leaves),
+            format!("{:?}", plain_traits.leaves)
+        );
+        let (plain, kept) = (Plant::build(&plain_traits, 70.0), Plant::build(&traits, 70.0));
+        let dead = kept.state.emerged - kept.leaf_count();
+        assert!(dead >= 3, "{dead} dead leaves at 70 days");
+        assert_eq!(kept.state.remnants.len(), dead);
+        assert!(plain.state.remnants.is_empty());
+        assert_eq!(kept.leaf_count(), plain.leaf_count());
+        assert_eq!(kept.leaf_tips, plain.leaf_tips);
+        let count = |p: &Plant, class: u8| p.mesh.info.iter().filter(|i| i.class == class).count();
+        assert_eq!(
+            count(&kept, phyllo_contract::LEAF),
+            count(&plain, phyllo_contract::LEAF)
+        );
+        // What the remnants add is stem, none of it a leaf instance, and drying.
+        let added = kept.mesh.tris.len() - plain.mesh.tris.len();
+        assert!(added > 0);
+        assert_eq!(
+            count(&kept, phyllo_contract::STEM) - count(&plain, phyllo_contract::STEM),
+            added
+        );
+        let max_instance = |p: &Plant| p.mesh.info.iter().map(|i| i.instance).max();
+        assert_eq!(max_instance(&kept), max_instance(&plain));
+        let dry = kept
+            .mesh
+            .info
+            .iter()
+            .filter(|i| i.class == phyllo_contract::STEM && i.senescence > 0.5);
+        assert!(dry.count() > added / 4);
+        // Stubs are short: a remnant is at most a fifth of its leaf.
+        for r in &kept.state.remnants {
+            assert!(r.length <= 0.2 * traits.leaves[r.rank].length + 1e-6);
+        }
+        // A seedling has no dead leaves and so no remnants.
+        assert!(Plant::build(&traits, 15.0).state.remnants.is_empty());
     }
 }

@@ -96,6 +96,13 @@ pub struct Growth {
     pub lifespan_days: Range,
     /// Days of visible senescence (yellowing, browning) before death.
     pub senescence_days: Range,
+    /// Share of plants whose dead leaves leave remnants: the dried sheath
+    /// stays wrapped round the stem with a shrivelled stub of blade hanging
+    /// from its collar, both labelled stem. Real grown plants carry them
+    /// (the real crop `402-586…SV_288` has several, each counted as a leaf);
+    /// 0, the default, makes a dead leaf vanish whole, as before.
+    #[serde(default)]
+    pub dead_remnant_chance: f32,
 }
 
 /// Leaf blade geometry.
@@ -292,12 +299,18 @@ impl Preset {
         }
         let l = &self.leaf;
         let s = &self.stem;
-        let ranges: [(&str, Range, f32, f32); 30] = [
+        let ranges: [(&str, Range, f32, f32); 31] = [
             ("growth.first_emergence_day", g.first_emergence_day, 0.0, 30.0),
             ("growth.phyllochron_days", g.phyllochron_days, 0.5, 15.0),
             ("growth.expansion_days", g.expansion_days, 1.0, 30.0),
             ("growth.lifespan_days", g.lifespan_days, 1.0, 200.0),
             ("growth.senescence_days", g.senescence_days, 0.5, 60.0),
+            (
+                "growth.dead_remnant_chance",
+                [g.dead_remnant_chance, g.dead_remnant_chance],
+                0.0,
+                1.0,
+            ),
             ("leaf.max_length", l.max_length, 0.05, 2.0),
             ("leaf.longest_rank", l.longest_rank, 0.0, 1.0),
             ("leaf.first_length_fraction", l.first_length_fraction, 0.01, 1.0),
