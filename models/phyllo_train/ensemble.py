@@ -21,6 +21,7 @@ import onnx
 from onnx import compose, helper, numpy_helper
 
 from .contract import load_contract
+from .export import stamp_metadata
 
 OUTPUTS = ("semantic", "center", "offset", "tip")
 """Output names an ensemble may average, in the contract's order."""
@@ -95,9 +96,7 @@ def build_ensemble(paths: list[Path], *, name: str, weights: list[float] | None 
         "phyllo.training_data": " | ".join(f"{n}: {_meta(m).get('phyllo.training_data', '')}"
                                            for n, m in zip(member_names, members)),
     })
-    for key, value in meta.items():
-        entry = model.metadata_props.add()
-        entry.key, entry.value = key, value
+    stamp_metadata(model, meta)
     model.producer_name = "phyllo_train.ensemble"
     model.doc_string = f"phyllo {name}: mean of {', '.join(member_names)}"
     onnx.checker.check_model(model)

@@ -61,15 +61,20 @@ def export_onnx(model: torch.nn.Module, out: str | Path, contract: Contract, *, 
         "phyllo.output_stride": str(contract.stride),
     }
     meta.update(extra_meta or {})
-    del proto.metadata_props[:]
-    for k, v in meta.items():
-        entry = proto.metadata_props.add()
-        entry.key, entry.value = k, v
+    stamp_metadata(proto, meta)
     proto.producer_name = "phyllo_train"
     proto.doc_string = f"phyllo {model_name}: Panoptic-DeepLab-style semantic/center/offset heads at stride {contract.stride}"
     onnx.checker.check_model(proto)
     onnx.save(proto, str(out))
     return out
+
+
+def stamp_metadata(proto: onnx.ModelProto, meta: dict[str, str]) -> None:
+    """Replace ``proto``'s metadata with ``meta`` (the keys phyllo reads, see the contract)."""
+    del proto.metadata_props[:]
+    for k, v in meta.items():
+        entry = proto.metadata_props.add()
+        entry.key, entry.value = k, v
 
 
 def check_onnx(path: str | Path, model: torch.nn.Module, contract: Contract, *, atol: float = 1e-3,
