@@ -384,8 +384,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             dead_remnants,
         } => {
             check_age(age)?;
-            let preset =
-                with_dead_remnants(vec![Preset::load(&preset)?], dead_remnants.then_some(1.0))?.remove(0);
+            let mut preset = Preset::load(&preset)?;
+            if dead_remnants {
+                preset.growth.dead_remnant_chance = 1.0;
+            }
             let view = View::parse(&view).context("--view")?;
             let traits = PlantTraits::sample(&preset, seed);
             let plant = Plant::build(&traits, age);

@@ -23,12 +23,17 @@ from onnx import compose, helper, numpy_helper
 from .contract import load_contract
 from .export import stamp_metadata
 
-OUTPUTS = ("semantic", "center", "offset", "tip")
-"""Output names an ensemble may average, in the contract's order."""
-
-
 def _meta(model: onnx.ModelProto) -> dict[str, str]:
     return {p.key: p.value for p in model.metadata_props}
+
+
+def _normalised(weights: list[float] | None, n: int) -> list[float]:
+    """One positive weight per member (equal by default), scaled to sum to one."""
+    weights = weights or [1.0] * n
+    if len(weights) != n or any(w <= 0 for w in weights):
+        raise ValueError("give one positive weight per model")
+    total = float(sum(weights))
+    return [w / total for w in weights]
 
 
 def build_ensemble(paths: list[Path], *, name: str, weights: list[float] | None = None) -> onnx.ModelProto:
@@ -39,26 +44,24 @@ def build_ensemble(paths: list[Path], *, name: str, weights: list[float] | None 
     """
     if len(paths) < 2:
         raise ValueError("an ensemble needs at least two models")
-    weights = weights or [1.0] * len(paths)
-    if len(weights) != len(paths) or any(w <= 0 for w in weights):
-        raise ValueError("give one positive weight per model")
-    total = float(sum(weights))
-    weights = [w / total for w in weights]
+    weights = _normalised(weights, len(paths))
+    contract = load_contract()
 
     members = [onnx.load(str(p)) for p in paths]
+    metas = [_meta(m) for m in members]
     input_names = {m.graph.input[0].name for m in members}
     if len(input_names) != 1:
         raise ValueError(f"members disagree on the input name: {sorted(input_names)}")
     (input_name,) = input_names
-    versions = {_meta(m).get("phyllo.contract_version") for m in members}
+    versions = {meta.get("phyllo.contract_version") for meta in metas}
     if len(versions) != 1:
         raise ValueError(f"members disagree on the contract version: {sorted(map(str, versions))}")
     opsets = {next(o.version for o in m.opset_import if o.domain in ("", "ai.onnx")) for m in members}
     if len(opsets) != 1:
         raise ValueError(f"members use different opsets: {sorted(opsets)}")
-    shared = [o for o in OUTPUTS if all(o in {x.name for x in m.graph.output} for m in members)]
-    if not {"semantic", "center", "offset"} <= set(shared):
-        raise ValueError("every member needs the semantic, center and offset outputs")
+    shared = [o for o in contract.output_names_with_tip if all(o in {x.name for x in m.graph.output} for m in members)]
+    if not set(contract.output_names) <= set(shared):
+        raise ValueError(f"every member needs the outputs {', '.join(contract.output_names)}")
 
     nodes, inits, value_info = [], [], []
     for k, member in enumerate(members):
@@ -86,15 +89,15 @@ def build_ensemble(paths: list[Path], *, name: str, weights: list[float] | None 
                               value_info=value_info)
     model = helper.make_model(graph, opset_imports=list(members[0].opset_import))
     model.ir_version = members[0].ir_version
-    meta = _meta(members[0])
-    member_names = [_meta(m).get("phyllo.model_name", Path(p).stem) for m, p in zip(members, paths)]
+    meta = dict(metas[0])
+    member_names = [m.get("phyllo.model_name", Path(p).stem) for m, p in zip(metas, paths)]
     meta.update({
         "phyllo.model_name": name,
         "phyllo.ensemble_members": ",".join(member_names),
         "phyllo.ensemble_weights": ",".join(f"{w:.4f}" for w in weights),
-        "phyllo.parameters": str(sum(int(_meta(m).get("phyllo.parameters", "0")) for m in members)),
-        "phyllo.training_data": " | ".join(f"{n}: {_meta(m).get('phyllo.training_data', '')}"
-                                           for n, m in zip(member_names, members)),
+        "phyllo.parameters": str(sum(int(m.get("phyllo.parameters", "0")) for m in metas)),
+        "phyllo.training_data": " | ".join(f"{n}: {m.get('phyllo.training_data', '')}"
+                                           for n, m in zip(member_names, metas)),
     })
     stamp_metadata(model, meta)
     model.producer_name = "phyllo_train.ensemble"
@@ -108,8 +111,7 @@ def check_ensemble(path: Path, members: list[Path], weights: list[float] | None 
     """Run the ensemble and its members in onnxruntime; return the largest gap to the weighted mean."""
     import onnxruntime as ort
 
-    weights = weights or [1.0] * len(members)
-    weights = [w / sum(weights) for w in weights]
+    weights = _normalised(weights, len(members))
     x = np.random.default_rng(0).standard_normal((1, 3, *size)).astype(np.float32)
     ens = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     names = [o.name for o in ens.get_outputs()]
@@ -136,9 +138,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--weights", type=float, nargs="+", help="one weight per model (default: equal)")
     args = ap.parse_args(argv)
     model = build_ensemble(args.models, name=args.name, weights=args.weights)
-    version = _meta(model).get("phyllo.contract_version")
-    if version != str(load_contract().version):
-        raise SystemExit(f"the members follow contract v{version}, models/contract.toml is v{load_contract().version}")
+    version, want = _meta(model).get("phyllo.contract_version"), str(load_contract().version)
+    if version != want:
+        raise SystemExit(f"the members follow contract v{version}, models/contract.toml is v{want}")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     onnx.save(model, str(args.out))
     worst = check_ensemble(args.out, args.models, args.weights)

@@ -11,7 +11,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use super::metrics::CountPair;
+use super::metrics::{count_errors, CountPair};
 
 /// Two-sided 95 % normal quantile.
 const Z95: f64 = 1.959_963_984_540_054;
@@ -61,10 +61,7 @@ impl MetricIntervals {
         if pairs.is_empty() {
             return None;
         }
-        let err: Vec<f64> = pairs
-            .iter()
-            .map(|p| f64::from(p.predicted) - f64::from(p.truth))
-            .collect();
+        let err = count_errors(pairs);
         let n = err.len();
         let exact = err.iter().filter(|e| **e == 0.0).count();
         let within = err.iter().filter(|e| e.abs() <= 1.0).count();

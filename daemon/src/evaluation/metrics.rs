@@ -59,10 +59,7 @@ impl CountMetrics {
             };
         }
         let nf = n as f64;
-        let err: Vec<f64> = pairs
-            .iter()
-            .map(|p| f64::from(p.predicted) - f64::from(p.truth))
-            .collect();
+        let err = count_errors(pairs);
         let exact = err.iter().filter(|e| **e == 0.0).count() as f64 / nf;
         let within_1 = err.iter().filter(|e| e.abs() <= 1.0).count() as f64 / nf;
         let rmse = (err.iter().map(|e| e * e).sum::<f64>() / nf).sqrt();
@@ -89,6 +86,14 @@ impl CountMetrics {
             intercept: ym - slope * tm,
         }
     }
+}
+
+/// Predicted minus true count of each pair, in leaves.
+pub fn count_errors(pairs: &[CountPair]) -> Vec<f64> {
+    pairs
+        .iter()
+        .map(|p| f64::from(p.predicted) - f64::from(p.truth))
+        .collect()
 }
 
 /// Number of images per (true, predicted) count.
