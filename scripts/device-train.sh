@@ -3,8 +3,9 @@
 # /work/.library/device/README.md): makes a fresh training set on that
 # machine's cores, fine-tunes the shipped model on its GPU, and leaves the
 # exported checkpoints and the log under $OUT, to be scored here with
-# scripts/score-checkpoints.sh-style evaluations (calibration set first, then
-# scripts/model-metrics.sh). Nothing here is needed for CI.
+# scripts/score-checkpoints.sh-style evaluations (calibration set first, at
+# several centre thresholds, THRESHOLDS="0.15 0.2 0.25 0.3": fine-tuning lowers
+# the centre peaks; then scripts/model-metrics.sh). Nothing here is needed for CI.
 #
 # Prepare on this machine, from the repository root:
 #   cargo build --release -p phyllo-gen

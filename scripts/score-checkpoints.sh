@@ -6,6 +6,10 @@
 # test set, to choose a checkpoint.
 # Usage: scripts/score-checkpoints.sh RUN_DIR DATASET [START_CHECKPOINT]
 # Checkpoints already scored are not exported again (RUN_DIR/scored/).
+# THRESHOLDS="0.2 0.3" scores each checkpoint at each centre threshold (default:
+# the contract's only). Fine-tuning lowers the centre peaks, so a checkpoint
+# judged at the threshold calibrated for another model looks worse than it
+# counts (models/MODEL.md, "The centre loss and the count").
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 usage="usage: score-checkpoints.sh RUN_DIR DATASET [START_CHECKPOINT]"
@@ -25,6 +29,9 @@ for ck in $start "$run"/step-*.pt; do
   if [ ! -e "$onnx" ]; then
     (cd "$root/models" && "$py" -m phyllo_train.export --checkpoint "$ck" --out "$onnx" --name "$name" >/dev/null)
   fi
-  "$bin" eval --threads "${THREADS:-2}" --model "$onnx" --dataset "$data" --split all 2>/dev/null |
-    awk -v l="$name" '/^\| images/ {getline; getline; sub(/^\|/, ""); print "| " l " |" $0; exit}'
+  for t in ${THRESHOLDS:-contract}; do
+    if [ "$t" = contract ]; then args=(); label=$name; else args=(--center-threshold "$t"); label="$name @ $t"; fi
+    "$bin" eval --threads "${THREADS:-2}" --model "$onnx" --dataset "$data" --split all "${args[@]}" 2>/dev/null |
+      awk -v l="$label" '/^\| images/ {getline; getline; sub(/^\|/, ""); print "| " l " |" $0; exit}'
+  done
 done

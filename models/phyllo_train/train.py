@@ -193,6 +193,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--lr", type=float, default=2e-3)
     ap.add_argument("--weight-decay", type=float, default=1e-4)
+    ap.add_argument("--optimizer", choices=["adamw", "sgd"], default="adamw",
+                    help="adamw (the shipped recipe) or sgd with --momentum: a fresh AdamW moves every weight by "
+                         "about the learning rate per step whatever its gradient, which a fine-tune from a "
+                         "converged checkpoint (rebuilt without optimiser state) may not want")
+    ap.add_argument("--momentum", type=float, default=0.9, help="SGD momentum (with --optimizer sgd)")
     ap.add_argument("--warmup", type=int, default=200)
     ap.add_argument("--ema", type=float, default=0.999, help="EMA decay of weights used for val/export; 0 = off")
     ap.add_argument("--center-weight", type=float, default=200.0)
@@ -200,6 +205,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="centre-loss weight within 2 sigma of small instances' centres (1 = off; "
                          "validation always uses 1, so its loss stays comparable)")
     ap.add_argument("--offset-weight", type=float, default=0.01)
+    ap.add_argument("--center-focal", type=float, default=0.0,
+                    help="weight of a CenterNet focal loss on the centre heatmap, added to the MSE (0 = off; "
+                         "losses.center_focal_loss says why)")
     ap.add_argument("--top-k", type=float, default=0.2)
     ap.add_argument("--instance-stride", type=int, default=4, choices=[2, 4],
                     help="stride of the centre and offset heads (4: the shipped layout; 2: see model.PhylloNet)")
@@ -299,9 +307,12 @@ def main(argv: list[str] | None = None) -> int:
     # No weight decay on BN parameters and biases (standard practice for small nets).
     decay = [p for n, p in model.named_parameters() if p.ndim > 1]
     no_decay = [p for n, p in model.named_parameters() if p.ndim <= 1]
-    opt = torch.optim.AdamW([{"params": decay, "weight_decay": args.weight_decay},
-                             {"params": no_decay, "weight_decay": 0.0}], lr=args.lr)
-    weights = LossWeights(1.0, args.center_weight, args.offset_weight, args.top_k)
+    groups = [{"params": decay, "weight_decay": args.weight_decay}, {"params": no_decay, "weight_decay": 0.0}]
+    if args.optimizer == "sgd":
+        opt = torch.optim.SGD(groups, lr=args.lr, momentum=args.momentum, nesterov=args.momentum > 0)
+    else:
+        opt = torch.optim.AdamW(groups, lr=args.lr)
+    weights = LossWeights(1.0, args.center_weight, args.offset_weight, args.top_k, args.center_focal)
     training_data = describe_data(args.data) + (f" | {args.data_note}" if args.data_note else "")
     if args.center_sigma is not None:
         training_data += f" | centre sigma {args.center_sigma:g} output px"
@@ -309,6 +320,10 @@ def main(argv: list[str] | None = None) -> int:
         training_data += f" | training zoom height {args.zoom_height} rows"
     if args.freeze_bn:
         training_data += " | BatchNorm statistics frozen"
+    if args.center_focal > 0:
+        training_data += f" | centre focal loss weight {args.center_focal:g}"
+    if args.optimizer != "adamw":
+        training_data += f" | {args.optimizer.upper()} momentum {args.momentum:g}"
     if args.small_center_weight != 1.0:
         training_data += f" | small-instance centre weight {args.small_center_weight:g}"
     if args.tips:
@@ -386,7 +401,7 @@ def main(argv: list[str] | None = None) -> int:
             _, loss, parts = forward_losses(model, xs, ts, weights, args.tip_weight)
             opt.zero_grad(set_to_none=True)
             loss.backward()
-            torch.nn.utils.clip_grad_norm_(model.parameters(), 5.0)
+            parts["grad_norm"] = float(torch.nn.utils.clip_grad_norm_(model.parameters(), 5.0))
             opt.step()
             if ema is not None:
                 ema.update(model)
@@ -400,8 +415,10 @@ def main(argv: list[str] | None = None) -> int:
                 t_last, imgs_since = now, 0
                 eta = (total - step) * args.batch / max(rate, 1e-9)
                 tip = f" tip {run_avg['tip']:.3f}" if "tip" in run_avg else ""
+                tip += f" focal {run_avg['focal']:.3f}" if "focal" in run_avg else ""
                 msg = (f"step {step}/{total} ep {epoch} | loss {run_avg['loss']:.4f} (sem {run_avg['sem']:.4f} "
-                       f"ctr {run_avg['center']:.5f} off {run_avg['offset']:.3f}{tip}) | {rate:.1f} img/s | "
+                       f"ctr {run_avg['center']:.5f} off {run_avg['offset']:.3f}{tip}) | grad {run_avg['grad_norm']:.2f} | "
+                       f"{rate:.1f} img/s | "
                        f"lr {opt.param_groups[0]['lr']:.2e} | eta {int(eta // 60)}m{int(eta % 60):02d}s")
                 print(("\r" + msg) if tty else msg, end="" if tty else "\n", flush=True)
                 log.write(json.dumps({"step": step, "epoch": epoch, "rate": rate, **run_avg}) + "\n")

@@ -114,3 +114,17 @@ def test_small_centre_weight_covers_small_centres_only(contract):
     assert w[by, bx] == 1.0
     # The heatmap itself is the same; only its weight changes.
     np.testing.assert_array_equal(t.center, plain.center)
+
+
+def test_centre_focal_loss_prefers_two_peaks_to_one_blob():
+    """Two small leaves' centres 8 px apart: the blob that merges them costs little MSE, more focal loss."""
+    from phyllo_train.losses import center_focal_loss
+    from phyllo_train.targets import gaussian_heatmap
+
+    truth = torch.from_numpy(gaussian_heatmap((48, 48), np.array([[24, 20], [24, 28]]), 4.0))[None, None]
+    blob = 0.9 * torch.from_numpy(gaussian_heatmap((48, 48), np.array([[24, 24]]), 5.0))[None, None]
+    mse = ((blob - truth) ** 2).mean()
+    assert mse < 0.01
+    assert center_focal_loss(blob, truth) > 1.3 * center_focal_loss(truth, truth)
+    # Without a peak at either centre the focal loss pays per missed centre, not per pixel.
+    assert center_focal_loss(torch.zeros_like(truth), truth) > 5.0

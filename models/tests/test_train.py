@@ -72,3 +72,19 @@ def test_frozen_batchnorm_trains_the_eval_function(tiny_dataset, tmp_path, contr
     note = after["training_data"]
     assert "BatchNorm statistics frozen" in note and "small-instance centre weight 4" in note
     assert "training zoom height 320" in note
+
+
+def test_sgd_with_centre_focal_loss_trains_and_says_so(tiny_dataset, tmp_path, contract):
+    run = tmp_path / "sgd"
+    assert train.main(["--data", str(tiny_dataset), "--out", str(run), "--crop", "64", "--batch", "2",
+                       "--workers", "0", "--val-limit", "1", "--val-every", "2", "--log-every", "1",
+                       "--warmup", "1", "--steps", "2", "--optimizer", "sgd", "--lr", "1e-3",
+                       "--center-focal", "0.5"]) == 0
+    rows = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+    assert all(r["grad_norm"] > 0 and r["focal"] > 0 for r in rows if "grad_norm" in r)
+    assert any("val_focal" in r for r in rows)
+    out = tmp_path / "sgd.onnx"
+    assert export.main(["--checkpoint", str(run / "last.pt"), "--out", str(out), "--check-size", "64"]) == 0
+    meta = {p.key: p.value for p in onnx.load(str(out)).metadata_props}
+    assert "centre focal loss weight 0.5" in meta["phyllo.training_data"]
+    assert "SGD momentum 0.9" in meta["phyllo.training_data"]
