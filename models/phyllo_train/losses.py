@@ -46,7 +46,7 @@ def center_focal_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = 2
     -log(1 - p), and pixels near a centre are forgiven by ``(1 - target) ** beta``.
     Outside (0, 1) it has no gradient; the MSE it is added to still has.
     """
-    return penalty_reduced_focal(pred.clamp(1e-4, 1 - 1e-4), target, alpha, beta)
+    return penalty_reduced_focal(pred, target, alpha, beta)
 
 
 def offset_l1(pred: torch.Tensor, target: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
@@ -62,11 +62,11 @@ def panoptic_loss(outputs: tuple[torch.Tensor, torch.Tensor, torch.Tensor], targ
     l_cen = center_mse(center, targets["center"], targets["center_weight"])
     l_off = offset_l1(offset, targets["offset"], targets["offset_weight"])
     total = w.semantic * l_sem + w.center * l_cen + w.offset * l_off
-    parts = {"loss": total, "sem": l_sem, "center": l_cen, "offset": l_off}
+    parts = {"sem": l_sem, "center": l_cen, "offset": l_off}
     if w.center_focal > 0:
-        l_focal = center_focal_loss(center, targets["center"])
-        total = total + w.center_focal * l_focal
-        parts.update(loss=total, focal=l_focal)
+        parts["focal"] = center_focal_loss(center, targets["center"])
+        total = total + w.center_focal * parts["focal"]
+    parts["loss"] = total
     return total, {k: float(v.detach()) for k, v in parts.items()}
 
 
@@ -76,11 +76,12 @@ def tip_focal_loss(logits: torch.Tensor, target: torch.Tensor, alpha: float = 2.
     ``target`` peaks are exactly 1 (targets.gaussian_heatmap); pixels near a
     peak are penalised less for firing, by ``(1 - target) ** beta``.
     """
-    return penalty_reduced_focal(torch.sigmoid(logits).clamp(1e-4, 1 - 1e-4), target, alpha, beta)
+    return penalty_reduced_focal(torch.sigmoid(logits), target, alpha, beta)
 
 
 def penalty_reduced_focal(p: torch.Tensor, target: torch.Tensor, alpha: float, beta: float) -> torch.Tensor:
-    """The focal loss of probabilities ``p`` in (0, 1) against unit-peak Gaussian ``target``s, per peak."""
+    """The focal loss of probabilities ``p`` (clamped into (0, 1)) against unit-peak Gaussian ``target``s, per peak."""
+    p = p.clamp(1e-4, 1 - 1e-4)
     pos = target.ge(1.0 - 1e-6).float()
     pos_loss = -torch.log(p) * (1 - p) ** alpha * pos
     neg_loss = -torch.log(1 - p) * p ** alpha * (1 - target) ** beta * (1 - pos)

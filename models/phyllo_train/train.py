@@ -194,9 +194,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--lr", type=float, default=2e-3)
     ap.add_argument("--weight-decay", type=float, default=1e-4)
     ap.add_argument("--optimizer", choices=["adamw", "sgd"], default="adamw",
-                    help="adamw (the shipped recipe) or sgd with --momentum: a fresh AdamW moves every weight by "
-                         "about the learning rate per step whatever its gradient, which a fine-tune from a "
-                         "converged checkpoint (rebuilt without optimiser state) may not want")
+                    help="adamw (the shipped recipe) or sgd with Nesterov --momentum (a fine-tune of s10 with it "
+                         "counted worse: models/MODEL.md, \"The centre loss and the count\")")
     ap.add_argument("--momentum", type=float, default=0.9, help="SGD momentum (with --optimizer sgd)")
     ap.add_argument("--warmup", type=int, default=200)
     ap.add_argument("--ema", type=float, default=0.999, help="EMA decay of weights used for val/export; 0 = off")
@@ -414,10 +413,9 @@ def main(argv: list[str] | None = None) -> int:
                 rate = imgs_since / max(1e-9, now - t_last)
                 t_last, imgs_since = now, 0
                 eta = (total - step) * args.batch / max(rate, 1e-9)
-                tip = f" tip {run_avg['tip']:.3f}" if "tip" in run_avg else ""
-                tip += f" focal {run_avg['focal']:.3f}" if "focal" in run_avg else ""
+                extra = "".join(f" {k} {run_avg[k]:.3f}" for k in ("tip", "focal") if k in run_avg)
                 msg = (f"step {step}/{total} ep {epoch} | loss {run_avg['loss']:.4f} (sem {run_avg['sem']:.4f} "
-                       f"ctr {run_avg['center']:.5f} off {run_avg['offset']:.3f}{tip}) | grad {run_avg['grad_norm']:.2f} | "
+                       f"ctr {run_avg['center']:.5f} off {run_avg['offset']:.3f}{extra}) | grad {run_avg['grad_norm']:.2f} | "
                        f"{rate:.1f} img/s | "
                        f"lr {opt.param_groups[0]['lr']:.2e} | eta {int(eta // 60)}m{int(eta % 60):02d}s")
                 print(("\r" + msg) if tty else msg, end="" if tty else "\n", flush=True)
