@@ -52,6 +52,9 @@ pub struct CounterConfig {
     /// Plant height small plants are enlarged to, in model pixels (0: never
     /// enlarge); `None` takes the contract's `zoom_plant_height`.
     pub zoom_plant_height: Option<u32>,
+    /// Largest enlargement of a small plant; `None` takes the contract's
+    /// `max_zoom`.
+    pub max_zoom: Option<f32>,
     /// Also run every tile mirrored and average the two (twice the model
     /// time).
     pub flip: bool,
@@ -72,6 +75,7 @@ impl Default for CounterConfig {
             region: RegionMode::Auto,
             scale: None,
             zoom_plant_height: None,
+            max_zoom: None,
             flip: false,
             postprocess: PostprocessParams::default(),
             limits: DecodeLimits::default(),
@@ -196,6 +200,9 @@ impl Counter {
         let mut zoom = Zoom::from_contract(c);
         if let Some(h) = self.config.zoom_plant_height {
             zoom.plant_height = h;
+        }
+        if let Some(m) = self.config.max_zoom {
+            zoom.max = m;
         }
         let mut timings = StageTimings::default();
         let (mut canvas, mut pan) = self.pass(img, self.config.scale, &mut timings)?;

@@ -242,6 +242,67 @@ fn real_frames_with_marked_tips_get_a_tip_table() {
     }
 }
 
+#[test]
+fn segment_table_lists_every_predicted_leaf_with_its_fate() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("ds");
+    generate_seed_77(&data);
+    let table = tmp.path().join("segments.tsv");
+    let (out, stdout, stderr) = run(phyllo()
+        .args(["eval", "--split", "all", "--json", "--per-image", "--model"])
+        .arg(phyllo_e2e::repo_root().join("models/phyllo.onnx"))
+        .arg("--dataset")
+        .arg(&data)
+        .arg("--segments")
+        .arg(&table));
+    assert!(out.status.success(), "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+    let mut rows = csv::ReaderBuilder::new()
+        .delimiter(b'\t')
+        .from_path(&table)
+        .unwrap();
+    let header: Vec<String> = rows.headers().unwrap().iter().map(str::to_string).collect();
+    assert_eq!(header[..5], ["image", "truth", "predicted", "segment", "kind"]);
+    let rows: Vec<csv::StringRecord> = rows.records().map(Result::unwrap).collect();
+    // The shipped model finds leaves on every plant: one row for each.
+    let counted: u64 = v["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["predicted"].as_u64().unwrap())
+        .sum();
+    assert!(counted > 0, "{v}");
+    assert!(
+        rows.len() as u64 >= counted,
+        "{} rows, {counted} leaves counted",
+        rows.len()
+    );
+    for r in &rows {
+        let img = v["images"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|i| i["file"].as_str().unwrap().ends_with(&r[0]))
+            .unwrap_or_else(|| panic!("row for an image eval did not report: {r:?}"));
+        assert_eq!(r[1].parse::<u64>().unwrap(), img["truth"].as_u64().unwrap());
+        assert_eq!(r[2].parse::<u64>().unwrap(), img["predicted"].as_u64().unwrap());
+    }
+    // The rows' extra leaves are the leaf-error table's, kind by kind.
+    let kinds = |k: &str| rows.iter().filter(|r| &r[4] == k).count() as u64;
+    let extra = &v["leaf_errors"]["extra"];
+    assert_eq!(kinds("split"), extra["split"].as_u64().unwrap(), "{extra}");
+    assert_eq!(kinds("on_stem"), extra["on_stem"].as_u64().unwrap(), "{extra}");
+    assert_eq!(
+        kinds("on_background"),
+        extra["on_background"].as_u64().unwrap(),
+        "{extra}"
+    );
+    assert!(
+        kinds("found") + kinds("partner") > 0,
+        "the shipped model finds some true leaves: {rows:?}"
+    );
+}
+
 /// The fingerprint `models/eval-sets.tsv` records for a set.
 fn recorded_fingerprint(set: &str) -> String {
     let path = phyllo_e2e::repo_root().join("models/eval-sets.tsv");

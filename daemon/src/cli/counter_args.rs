@@ -32,6 +32,9 @@ pub struct CounterArgs {
     /// contract's).
     #[arg(long, value_name = "PIXELS")]
     pub zoom_height: Option<u32>,
+    /// Largest enlargement of a small plant (default: the contract's).
+    #[arg(long, value_name = "FACTOR", value_parser = parse_max_zoom)]
+    pub max_zoom: Option<f32>,
     /// Also run every tile mirrored left to right and average the two.
     #[arg(long)]
     pub flip: bool,
@@ -92,6 +95,7 @@ impl CounterArgs {
             region: parse_region(&self.region)?,
             scale: self.scale,
             zoom_plant_height: self.zoom_height,
+            max_zoom: self.max_zoom,
             flip: self.flip,
             postprocess,
             ..CounterConfig::default()
@@ -104,6 +108,16 @@ fn parse_count_rule() -> impl clap::builder::TypedValueParser<Value = CountRule>
     use clap::builder::TypedValueParser;
     clap::builder::PossibleValuesParser::new(CountRule::ALL.map(CountRule::name))
         .map(|s| s.parse::<CountRule>().expect("a listed rule"))
+}
+
+/// Parses a `--max-zoom`: 1..=8, the contract's bounds.
+fn parse_max_zoom(s: &str) -> Result<f32, String> {
+    let z: f32 = s.parse().map_err(|e| format!("{s:?} is not a number: {e}"))?;
+    if (1.0..=8.0).contains(&z) {
+        Ok(z)
+    } else {
+        Err(format!("{z} is outside 1..=8"))
+    }
 }
 
 /// Parses an `--nms-kernel` side: odd, 1..=31.
@@ -190,6 +204,15 @@ mod tests {
     #[test]
     fn without_tip_options_the_defaults_hold() {
         assert_eq!(config(&[]).unwrap().postprocess, PostprocessParams::default());
+    }
+
+    #[test]
+    fn max_zoom_is_taken_within_the_contract_bounds_only() {
+        assert_eq!(config(&["--max-zoom", "2.5"]).unwrap().max_zoom, Some(2.5));
+        assert_eq!(config(&[]).unwrap().max_zoom, None);
+        for bad in ["0.5", "9", "NaN", "two"] {
+            assert!(config(&["--max-zoom", bad]).is_err(), "{bad}");
+        }
     }
 
     #[test]

@@ -15,6 +15,7 @@ use crate::evaluation::fingerprint::Fingerprint;
 use crate::evaluation::intervals::MetricIntervals;
 use crate::evaluation::leaf_errors::LeafErrors;
 use crate::evaluation::metrics::{confusion, confusion_table, per_view, CountMetrics, CountPair};
+use crate::evaluation::segment_table::{self, SegmentRow};
 use crate::evaluation::segmentation::{panoptic_quality, LeafMatch, Overlaps, PixelMap};
 use crate::evaluation::tip_errors::{TipErrors, TipMatch, TipOutcome};
 use crate::evaluation::{plots, sources, tip_overlay};
@@ -51,6 +52,11 @@ pub struct Args {
     /// Also print each image's true and predicted count.
     #[arg(long)]
     pub per_image: bool,
+    /// Write one row per predicted leaf (what it is against the truth, its
+    /// area, score and contact with other leaves) to this TSV, for scoring
+    /// post-processing rules offline (`python -m phyllo_train.segment_rules`).
+    #[arg(long, value_name = "TSV", requires = "dataset")]
+    pub segments: Option<PathBuf>,
     /// With a `tips_xy` column in the CSV: a marked tip belongs to the
     /// predicted leaf with a pixel this near, in the image's pixels.
     #[arg(long, value_name = "PIXELS", default_value_t = 24.0, requires = "counts")]
@@ -81,6 +87,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut pairs = Vec::new();
     let mut matches: Vec<LeafMatch> = Vec::new();
     let mut leaf_errors = LeafErrors::default();
+    let mut segment_rows: Vec<SegmentRow> = Vec::new();
     let mut tip_errors = TipErrors::new(args.tip_radius);
     let mut tip_outcomes: Vec<(String, TipOutcome)> = Vec::new();
     let mut failed = Vec::new();
@@ -126,6 +133,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                     predicted: analysis.result.leaf_count,
                 };
                 let overlaps = Overlaps::of(&truth, &pred);
+                if args.segments.is_some() {
+                    segment_rows.extend(segment_table::rows(
+                        &item.name,
+                        pair.truth,
+                        pair.predicted,
+                        &overlaps,
+                        &analysis.panoptic,
+                    ));
+                }
                 Ok((pair, LeafMatch::of(&overlaps), overlaps))
             })();
             match outcome {
@@ -192,6 +208,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         bail!("give --dataset DIR, or --counts CSV with --images DIR");
     }
 
+    if let Some(path) = &args.segments {
+        segment_table::write_tsv(path, &segment_rows)?;
+    }
     let metrics = CountMetrics::of(&pairs);
     let views = per_view(&pairs);
     let intervals = MetricIntervals::of(&pairs);

@@ -79,42 +79,128 @@ impl Default for LeafErrors {
     }
 }
 
-impl LeafErrors {
-    /// Adds one image's leaves.
-    pub fn add(&mut self, o: &Overlaps) {
+/// What one predicted leaf is, against the truth.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PredictedLeaf {
+    /// Matched one to one with a true leaf at IoU above 0.5.
+    Found,
+    /// The instance covering most of a partly found true leaf.
+    Partner,
+    /// An extra one, mostly on a true leaf another instance already covers.
+    Split,
+    /// An extra one, mostly on true stem.
+    OnStem,
+    /// An extra one, mostly on background.
+    OnBackground,
+}
+
+impl PredictedLeaf {
+    /// Lower-case name for tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            PredictedLeaf::Found => "found",
+            PredictedLeaf::Partner => "partner",
+            PredictedLeaf::Split => "split",
+            PredictedLeaf::OnStem => "on_stem",
+            PredictedLeaf::OnBackground => "on_background",
+        }
+    }
+}
+
+/// Who owns what in one image: the one-to-one matches, and which true and
+/// predicted leaves cover each other most.
+struct Ownership {
+    /// True leaf to its predicted match at IoU above 0.5.
+    matched: BTreeMap<u32, u32>,
+    /// Predicted leaf to its true match.
+    found_by: BTreeMap<u32, u32>,
+    /// For each predicted leaf the true leaf it covers most.
+    owner: BTreeMap<u32, (u32, f64)>,
+    /// For each true leaf the predicted leaf covering most of it.
+    cover: BTreeMap<u32, (u32, f64)>,
+    /// Predicted-leaf pixels on each true leaf.
+    covered: BTreeMap<u32, f64>,
+    /// Pixels of each predicted leaf on any true leaf.
+    on_leaf: BTreeMap<u32, f64>,
+}
+
+impl Ownership {
+    fn of(o: &Overlaps) -> Self {
         let matched: BTreeMap<u32, u32> = o
             .pairs
             .iter()
             .filter(|(iou, _, _)| *iou > 0.5)
             .map(|&(_, t, p)| (t, p))
             .collect();
-        let found_by: BTreeMap<u32, u32> = matched.iter().map(|(t, p)| (*p, *t)).collect();
-        // For each predicted leaf the true leaf it covers most, and for each
-        // true leaf the predicted leaf covering most of it.
-        let mut owner: BTreeMap<u32, (u32, f64)> = BTreeMap::new();
-        let mut cover: BTreeMap<u32, (u32, f64)> = BTreeMap::new();
-        let mut covered: BTreeMap<u32, f64> = BTreeMap::new();
-        let mut on_leaf: BTreeMap<u32, f64> = BTreeMap::new();
+        let found_by = matched.iter().map(|(t, p)| (*p, *t)).collect();
+        let mut w = Ownership {
+            matched,
+            found_by,
+            owner: BTreeMap::new(),
+            cover: BTreeMap::new(),
+            covered: BTreeMap::new(),
+            on_leaf: BTreeMap::new(),
+        };
         for (&(t, p), &n) in &o.shared {
-            if owner.get(&p).is_none_or(|b| n > b.1) {
-                owner.insert(p, (t, n));
+            if w.owner.get(&p).is_none_or(|b| n > b.1) {
+                w.owner.insert(p, (t, n));
             }
-            if cover.get(&t).is_none_or(|b| n > b.1) {
-                cover.insert(t, (p, n));
+            if w.cover.get(&t).is_none_or(|b| n > b.1) {
+                w.cover.insert(t, (p, n));
             }
-            *covered.entry(t).or_default() += n;
-            *on_leaf.entry(p).or_default() += n;
+            *w.covered.entry(t).or_default() += n;
+            *w.on_leaf.entry(p).or_default() += n;
         }
+        w
+    }
+
+    fn predicted(&self, o: &Overlaps, p: u32, area: f64) -> PredictedLeaf {
+        if self.found_by.contains_key(&p) {
+            return PredictedLeaf::Found;
+        }
+        // The instance covering most of a partly found leaf is that leaf's
+        // partner, not an extra one, however much it spills over.
+        if let Some(&(t, _)) = self.owner.get(&p) {
+            if self.cover.get(&t).map(|c| c.0) == Some(p) && !self.matched.contains_key(&t) {
+                return PredictedLeaf::Partner;
+            }
+        }
+        let leaf = self.on_leaf.get(&p).copied().unwrap_or(0.0);
+        let stem = o.pred_on_stem.get(&p).copied().unwrap_or(0.0);
+        let background = area - leaf - stem;
+        if leaf >= stem && leaf >= background {
+            PredictedLeaf::Split
+        } else if stem >= background {
+            PredictedLeaf::OnStem
+        } else {
+            PredictedLeaf::OnBackground
+        }
+    }
+}
+
+/// What each predicted leaf of one image is, by instance id.
+pub fn classify_predicted(o: &Overlaps) -> BTreeMap<u32, PredictedLeaf> {
+    let w = Ownership::of(o);
+    o.pred_area
+        .iter()
+        .map(|(&p, &area)| (p, w.predicted(o, p, area)))
+        .collect()
+}
+
+impl LeafErrors {
+    /// Adds one image's leaves.
+    pub fn add(&mut self, o: &Overlaps) {
+        let w = Ownership::of(o);
         for (&t, &area) in &o.truth_area {
             let class = AREA_CLASSES.iter().take_while(|hi| area >= **hi).count();
             let row = &mut self.true_leaves[class];
-            if matched.contains_key(&t) {
+            if w.matched.contains_key(&t) {
                 row.found += 1;
-            } else if covered.get(&t).copied().unwrap_or(0.0) < 0.5 * area {
+            } else if w.covered.get(&t).copied().unwrap_or(0.0) < 0.5 * area {
                 row.not_seen += 1;
             } else {
-                let p = cover[&t].0;
-                let own = owner.get(&p).map(|o| o.0) == Some(t) && !found_by.contains_key(&p);
+                let p = w.cover[&t].0;
+                let own = w.owner.get(&p).map(|o| o.0) == Some(t) && !w.found_by.contains_key(&p);
                 if own {
                     row.partly_found += 1;
                 } else {
@@ -123,25 +209,11 @@ impl LeafErrors {
             }
         }
         for (&p, &area) in &o.pred_area {
-            if found_by.contains_key(&p) {
-                continue;
-            }
-            // The instance covering most of a partly found leaf is that leaf's
-            // partner, not an extra one, however much it spills over.
-            if let Some(&(t, _)) = owner.get(&p) {
-                if cover.get(&t).map(|c| c.0) == Some(p) && !matched.contains_key(&t) {
-                    continue;
-                }
-            }
-            let leaf = on_leaf.get(&p).copied().unwrap_or(0.0);
-            let stem = o.pred_on_stem.get(&p).copied().unwrap_or(0.0);
-            let background = area - leaf - stem;
-            if leaf >= stem && leaf >= background {
-                self.extra.split += 1;
-            } else if stem >= background {
-                self.extra.on_stem += 1;
-            } else {
-                self.extra.on_background += 1;
+            match w.predicted(o, p, area) {
+                PredictedLeaf::Found | PredictedLeaf::Partner => {}
+                PredictedLeaf::Split => self.extra.split += 1,
+                PredictedLeaf::OnStem => self.extra.on_stem += 1,
+                PredictedLeaf::OnBackground => self.extra.on_background += 1,
             }
         }
     }
@@ -274,6 +346,12 @@ mod tests {
         assert_eq!(e.extra.split, 1);
         assert_eq!(e.extra.on_stem, 1);
         assert_eq!(e.extra.on_background, 2);
+        let kinds = classify_predicted(&Overlaps::of(&map(&["1111ss...."]), &map(&["1122334..5"])));
+        let names: Vec<&str> = kinds.values().map(|k| k.name()).collect();
+        assert_eq!(
+            names,
+            ["partner", "split", "on_stem", "on_background", "on_background"]
+        );
     }
 
     #[test]

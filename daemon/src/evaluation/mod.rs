@@ -7,6 +7,7 @@ pub mod intervals;
 pub mod leaf_errors;
 pub mod metrics;
 pub mod plots;
+pub mod segment_table;
 pub mod segmentation;
 pub mod sources;
 pub mod tip_errors;
