@@ -124,16 +124,21 @@ def save_atomic(obj: dict, path: Path) -> None:
 
 
 def forward_losses(model: torch.nn.Module, xs: torch.Tensor, ts: dict[str, torch.Tensor], w: LossWeights,
-                   tip_weight: float) -> tuple[tuple[torch.Tensor, ...], torch.Tensor, dict[str, float]]:
-    """The model's outputs (the tip, if any, as logits), the total loss and its parts for logging."""
+                   tip_weight: float, bf16: bool = False) -> tuple[tuple[torch.Tensor, ...], torch.Tensor, dict[str, float]]:
+    """The model's outputs (the tip, if any, as logits), the total loss and its parts for logging.
+
+    With ``bf16`` the network runs under bfloat16 autocast and the losses in float32: heatmap
+    peaks and small offsets keep full precision where they are compared with the targets.
+    """
+    with torch.autocast(xs.device.type, dtype=torch.bfloat16, enabled=bf16):
+        out = model.raw(xs) if isinstance(model, TipNet) else model(xs)
+    out = tuple(o.float() for o in out)
     if isinstance(model, TipNet):
-        out = model.raw(xs)
         loss, parts = panoptic_loss(out[:3], ts, w)
         l_tip = tip_focal_loss(out[3], ts["tip"])
         loss = loss + tip_weight * l_tip
         parts.update(loss=float(loss.detach()), tip=float(l_tip.detach()))
         return out, loss, parts
-    out = model(xs)
     loss, parts = panoptic_loss(out, ts, w)
     return out, loss, parts
 
@@ -221,6 +226,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--zoom-height", type=int, default=None,
                     help="small-plant zoom height for training samples, model rows (default: the contract's "
                          "zoom_plant_height; phyllo-s10-cpu was trained at 320, before the contract's 480)")
+    ap.add_argument("--bf16", action="store_true",
+                    help="run the network under bfloat16 autocast while training (losses, weights and "
+                         "validation stay float32); faster on CPUs with AVX512-BF16 or AMX and on GPUs "
+                         "(python -m phyllo_train.train_speed measures it)")
     ap.add_argument("--freeze-bn", action="store_true",
                     help="keep BatchNorm statistics fixed (eval mode) while training: for fine-tuning with "
                          "small batches, where batch statistics make training mode a different function")
@@ -321,6 +330,8 @@ def main(argv: list[str] | None = None) -> int:
         training_data += " | BatchNorm statistics frozen"
     if args.center_focal > 0:
         training_data += f" | centre focal loss weight {args.center_focal:g}"
+    if args.bf16:
+        training_data += " | bfloat16 autocast"
     if args.optimizer != "adamw":
         training_data += f" | {args.optimizer.upper()} momentum {args.momentum:g}"
     if args.small_center_weight != 1.0:
@@ -397,7 +408,7 @@ def main(argv: list[str] | None = None) -> int:
                 g["lr"] = lr_at(step, total, args.lr, args.warmup)
             xs = xs.to(device, non_blocking=True).contiguous(memory_format=mem)
             ts = {k: v.to(device, non_blocking=True) for k, v in ts.items()}
-            _, loss, parts = forward_losses(model, xs, ts, weights, args.tip_weight)
+            _, loss, parts = forward_losses(model, xs, ts, weights, args.tip_weight, args.bf16)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             parts["grad_norm"] = float(torch.nn.utils.clip_grad_norm_(model.parameters(), 5.0))

@@ -2,7 +2,9 @@
 
 import json
 
+import numpy as np
 import onnx
+import torch
 
 from phyllo_train import export, train
 
@@ -88,3 +90,28 @@ def test_sgd_with_centre_focal_loss_trains_and_says_so(tiny_dataset, tmp_path, c
     meta = {p.key: p.value for p in onnx.load(str(out)).metadata_props}
     assert "centre focal loss weight 0.5" in meta["phyllo.training_data"]
     assert "SGD momentum 0.9" in meta["phyllo.training_data"]
+
+
+def test_bf16_autocast_trains_exports_float32_and_says_so(tiny_dataset, tmp_path, contract):
+    run = tmp_path / "bf16"
+    assert train.main(["--data", str(tiny_dataset), "--out", str(run), "--crop", "64", "--batch", "2",
+                       "--workers", "0", "--val-limit", "1", "--val-every", "2", "--log-every", "1",
+                       "--warmup", "1", "--steps", "2", "--bf16"]) == 0
+    rows = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+    assert all(np.isfinite(r["loss"]) and r["grad_norm"] > 0 for r in rows if "grad_norm" in r)
+    ck = torch.load(run / "last.pt", weights_only=False)
+    assert all(v.dtype != torch.bfloat16 for v in ck["raw_model"].values()), "weights stay float32"
+    out = tmp_path / "bf16.onnx"
+    assert export.main(["--checkpoint", str(run / "last.pt"), "--out", str(out), "--check-size", "64"]) == 0
+    meta = {p.key: p.value for p in onnx.load(str(out)).metadata_props}
+    assert "bfloat16 autocast" in meta["phyllo.training_data"]
+
+
+def test_train_speed_prints_its_table(tiny_dataset, capsys):
+    from phyllo_train import train_speed
+    train_speed.main(["--data", str(tiny_dataset), "--crop", "64", "--batch", "2", "--threads", "1",
+                      "--samples", "2", "--steps", "1"])
+    out = capsys.readouterr().out
+    assert "| data pipeline, one process" in out
+    assert "| optimiser step, float32 |" in out and "| 1.00 |" in out
+    assert "| optimiser step, bfloat16 autocast |" in out
