@@ -37,6 +37,12 @@ def scale_for(w: int, h: int) -> float:
     return spec["crop_scale"]
 
 
+def median_colour(img: np.ndarray) -> np.ndarray:
+    """Per-channel median as region.rs computes it (the lower median of an even count)."""
+    flat = np.sort(img.reshape(-1, 3), axis=0)
+    return flat[(len(flat) + 1) // 2 - 1]
+
+
 def plant_colour(img: np.ndarray) -> np.ndarray:
     """Green or senescent pixels, white-balanced on the image median (region.rs)."""
     white = np.median(img.reshape(-1, 3), axis=0).clip(1, None)
@@ -103,9 +109,8 @@ def prepare(img: np.ndarray, s: float | None = None):
 
     ox, cw = span(box[0], box[2], sw)
     oy, ch = span(box[1], box[3], sh)
-    border = np.concatenate([scaled[0], scaled[-1], scaled[:, 0], scaled[:, -1]])
     canvas = np.empty((ch, cw, 3), np.uint8)
-    canvas[:] = np.median(border, axis=0).astype(np.uint8)
+    canvas[:] = median_colour(scaled)  # the chamber wall (tiling.rs)
     ys, xs = max(oy, 0), max(ox, 0)
     ye, xe = min(oy + ch, sh), min(ox + cw, sw)
     canvas[ys - oy:ye - oy, xs - ox:xe - ox] = scaled[ys:ye, xs:xe]
