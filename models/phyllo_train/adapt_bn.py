@@ -20,7 +20,6 @@ The checkpoint must hold BatchNorm statistics of the images it was trained on
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import sys
 from pathlib import Path
 
@@ -30,39 +29,15 @@ from PIL import Image
 from torch import nn
 
 from .contract import load_contract
-from .dataset import read_manifest
+from .daemon_inputs import image_paths, reference_pipeline
 from .export import load_checkpoint_model
 
-IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff"}
-
-
-def _reference_pipeline():
-    """models/reference_pipeline.py, the Python twin of the daemon's tiling (a script, not a package module)."""
-    path = Path(__file__).resolve().parents[1] / "reference_pipeline.py"
-    spec = importlib.util.spec_from_file_location("phyllo_reference_pipeline", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-def image_paths(sources: list[Path]) -> list[Path]:
-    """Image files named by ``sources``: files, folders of images, or phyllo-gen datasets (all splits)."""
-    paths: list[Path] = []
-    for src in sources:
-        if src.is_file():
-            paths.append(src)
-        elif (src / "manifest.jsonl").exists():
-            paths += [src / row["image"] for row in read_manifest(src)]
-        elif src.is_dir():
-            paths += sorted(p for p in src.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
-        else:
-            raise FileNotFoundError(f"{src}: no such file or folder")
-    return paths
+__all__ = ["adapt_batchnorm", "daemon_tiles", "image_paths", "main"]
 
 
 def daemon_tiles(paths: list[Path]) -> list[np.ndarray]:
     """The normalised first-pass tiles (T, 3, 512, 512) the daemon would run on each image."""
-    rp = _reference_pipeline()
+    rp = reference_pipeline()
     out = []
     for p in paths:
         try:
@@ -132,16 +107,17 @@ def main(argv: list[str] | None = None) -> int:
     batches = [torch.from_numpy(tiles[order[i:i + args.batch]]) for i in range(0, len(order), args.batch)]
     if len(batches) > 1 and len(batches[-1]) < args.batch:
         batches.pop()  # a short last batch would weigh its variance like a full one
+    used = sum(len(b) for b in batches)
     model, ck = load_checkpoint_model(args.checkpoint, contract)
     n = adapt_batchnorm(model, batches, args.layers)
     note = (f" | {n} BatchNorm layers' statistics adapted (AdaBN) to {len(paths)} unlabelled images "
-            f"({', '.join(p.name for p in args.images)}), {sum(len(b) for b in batches)} daemon tiles")
+            f"({', '.join(p.name for p in args.images)}), {used} daemon tiles")
     state = model.state_dict()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     torch.save({**ck, "model": state, "raw_model": state, "ema": None,
                 "training_data": ck.get("training_data", "unknown") + note}, args.out)
     print(f"wrote {args.out}: {n} BatchNorm layers adapted to {len(paths)} images, "
-          f"{sum(len(b) for b in batches)} tiles in batches of {args.batch}")
+          f"{used} tiles in batches of {args.batch}")
     return 0
 
 

@@ -23,8 +23,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from .adapt_bn import _reference_pipeline, image_paths
-from .contract import load_contract
+from .daemon_inputs import image_paths, reference_pipeline
 
 STATS = ("wall R", "wall G", "wall B", "plant R", "plant G", "plant B", "plant G−R", "wall roughness")
 
@@ -44,7 +43,7 @@ def image_stats(rgb: np.ndarray, plant: np.ndarray) -> np.ndarray | None:
 
 def scaled_images(paths: list[Path]):
     """Each image resized by the contract's scale rule (frames and crops alike), as uint8 RGB."""
-    rp = _reference_pipeline()
+    rp = reference_pipeline()
     for path in paths:
         with Image.open(path) as im:
             img = im.convert("RGB")
@@ -67,7 +66,7 @@ def augmented_crops(dataset: Path, limit: int, crop: int):
 
 def source_row(name: str, images) -> str:
     """One markdown table row: median [5th, 95th percentile] of each statistic over ``images``."""
-    rp = _reference_pipeline()
+    rp = reference_pipeline()
     rows = [r for r in (image_stats(img, rp.plant_colour(img)) for img in images) if r is not None]
     if not rows:
         return f"| {name} | 0 |" + " |" * len(STATS)
@@ -90,7 +89,6 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if not args.images and not args.augmented:
         ap.error("give at least one --images or --augmented source")
-    load_contract()
     print("| source | images | " + " | ".join(STATS) + " |")
     print("|---|---:|" + "---|" * len(STATS))
     try:

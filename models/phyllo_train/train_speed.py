@@ -71,6 +71,7 @@ def cpu_bf16_flags() -> str:
 
 
 def main(argv=None) -> None:
+    """CLI entry point: prints the table."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", required=True, help="a phyllo-gen dataset (its train split)")
     ap.add_argument("--crop", type=int, default=448)
