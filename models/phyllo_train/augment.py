@@ -8,6 +8,7 @@ noise, JPEG) touch the image only. All randomness comes from the caller's
 
 from __future__ import annotations
 
+import argparse
 import io
 from dataclasses import dataclass
 
@@ -49,6 +50,35 @@ class AugmentConfig:
         return cls(crop=crop, scale=(1.0, 1.0), hflip=0.0, rot90_top=False, fg_crop=0.0, brightness=0.0,
                    contrast=0.0, saturation=0.0, hue=0.0, gamma=(1.0, 1.0), white_balance=0.0,
                    gradient=0.0, blur_p=0.0, noise_p=0.0, jpeg_p=0.0, fringe_p=0.0, backlight_p=0.0)
+
+
+def _sigma_range(text: str) -> tuple[float, float]:
+    """``--noise-sigma`` parser: ``LO,HI`` in 0..255 units."""
+    try:
+        lo, hi = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LO,HI, got {text!r}") from None
+    if not 0 <= lo <= hi:
+        raise argparse.ArgumentTypeError(f"expected 0 <= LO <= HI, got {text!r}")
+    return lo, hi
+
+
+def add_noise_args(ap: argparse.ArgumentParser) -> None:
+    """The sensor-noise knobs a command shares with training (defaults: the recipe's)."""
+    ap.add_argument("--noise-p", type=float, default=None,
+                    help=f"share of training crops given Gaussian sensor noise (default {AugmentConfig.noise_p})")
+    ap.add_argument("--noise-sigma", type=_sigma_range, default=None,
+                    help="noise standard deviation range LO,HI in 0..255 units (default "
+                         f"{AugmentConfig.noise_sigma[0]:g},{AugmentConfig.noise_sigma[1]:g})")
+
+
+def with_noise_args(cfg: AugmentConfig, args: argparse.Namespace) -> AugmentConfig:
+    """``cfg`` with the noise knobs of :func:`add_noise_args` applied where given."""
+    if args.noise_p is not None:
+        cfg.noise_p = args.noise_p
+    if args.noise_sigma is not None:
+        cfg.noise_sigma = args.noise_sigma
+    return cfg
 
 
 def _rescale(img: Image.Image, lab: np.ndarray, f: float) -> tuple[Image.Image, np.ndarray]:

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from .augment import AugmentConfig, add_noise_args, with_noise_args
 from .daemon_inputs import image_paths, reference_pipeline
 
 STATS = ("wall R", "wall G", "wall B", "plant R", "plant G", "plant B", "plant G−R", "wall roughness")
@@ -52,12 +53,14 @@ def scaled_images(paths: list[Path]):
         yield np.asarray(img.resize(size, Image.BILINEAR))
 
 
-def augmented_crops(dataset: Path, limit: int, crop: int):
-    """Training crops of ``dataset``'s train split as the training run draws them, as uint8 RGB."""
-    from .augment import AugmentConfig
+def augmented_crops(dataset: Path, limit: int, crop: int, aug=None):
+    """Training crops of ``dataset``'s train split as the training run draws them, as uint8 RGB.
+
+    ``aug`` is the :class:`~phyllo_train.augment.AugmentConfig` (default: the recipe's at ``crop``).
+    """
     from .dataset import PanopticDataset
 
-    ds = PanopticDataset(dataset, "train", AugmentConfig(crop=crop), seed=19)
+    ds = PanopticDataset(dataset, "train", aug or AugmentConfig(crop=crop), seed=19)
     mean, std = (np.asarray(v, np.float32) for v in (ds.contract.mean, ds.contract.std))
     for i in range(min(limit, len(ds))):
         x, _ = ds[i]
@@ -86,16 +89,18 @@ def main(argv: list[str] | None = None) -> int:
                     help="phyllo-gen dataset whose training crops are drawn through the augmentation (repeatable)")
     ap.add_argument("--limit", type=int, default=80, help="images per source")
     ap.add_argument("--crop", type=int, default=448, help="training crop side for --augmented")
+    add_noise_args(ap)
     args = ap.parse_args(argv)
     if not args.images and not args.augmented:
         ap.error("give at least one --images or --augmented source")
+    aug = with_noise_args(AugmentConfig(crop=args.crop), args)
     print("| source | images | " + " | ".join(STATS) + " |")
     print("|---|---:|" + "---|" * len(STATS))
     try:
         for src in args.images:
             print(source_row(src.name, scaled_images(image_paths([src])[: args.limit])), flush=True)
         for src in args.augmented:
-            print(source_row(f"{src.name}, augmented {args.crop}² crops", augmented_crops(src, args.limit, args.crop)),
+            print(source_row(f"{src.name}, augmented {args.crop}² crops", augmented_crops(src, args.limit, args.crop, aug)),
                   flush=True)
     except (OSError, ValueError) as e:
         print(f"domain_stats: {e}", file=sys.stderr)

@@ -31,7 +31,7 @@ import numpy as np
 import torch
 from torch.utils.data import ConcatDataset, DataLoader
 
-from .augment import AugmentConfig
+from .augment import AugmentConfig, add_noise_args, with_noise_args
 from .contract import load_contract
 from .dataset import PanopticDataset, read_label, read_manifest
 from .ema import ModelEma
@@ -226,6 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--zoom-height", type=int, default=None,
                     help="small-plant zoom height for training samples, model rows (default: the contract's "
                          "zoom_plant_height; phyllo-s10-cpu was trained at 320, before the contract's 480)")
+    add_noise_args(ap)
     ap.add_argument("--bf16", action="store_true",
                     help="run the network under bfloat16 autocast while training (losses, weights and "
                          "validation stay float32); faster on CPUs with AVX512-BF16 or AMX and on GPUs "
@@ -282,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
         torch.set_num_threads(args.threads)
     args.out.mkdir(parents=True, exist_ok=True)
 
-    aug = AugmentConfig(crop=args.crop or None)
+    aug = with_noise_args(AugmentConfig(crop=args.crop or None), args)
     if not args.crop:
         aug.scale = (1.0, 1.0)  # full tiles: keep the contract's tile size exactly
     try:

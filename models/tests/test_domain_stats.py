@@ -33,3 +33,25 @@ def test_cli_prints_a_row_per_source(tiny_dataset, tmp_path, capsys):
     Image.new("RGB", (8, 8)).save(bad / "a.png")
     (bad / "b.png").write_bytes(b"\x89PNG truncated")
     assert domain_stats.main(["--images", str(bad)]) == 2
+
+
+def test_the_noise_knobs_roughen_the_augmented_crops(tiny_dataset):
+    from phyllo_train.augment import AugmentConfig
+
+    def roughness(noise_p, sigma):
+        cfg = AugmentConfig(crop=128, noise_p=noise_p, noise_sigma=sigma, jpeg_p=0.0, blur_p=0.0)
+        rp = domain_stats.reference_pipeline()
+        rows = [domain_stats.image_stats(img, rp.plant_colour(img))
+                for img in domain_stats.augmented_crops(tiny_dataset, 3, 128, cfg)]
+        return np.median([r[list(domain_stats.STATS).index("wall roughness")] for r in rows if r is not None])
+
+    assert roughness(1.0, (8.0, 8.0)) > roughness(0.0, (8.0, 8.0)) + 3.0
+
+
+def test_a_bad_noise_range_is_refused(capsys):
+    import pytest
+
+    for bad in ("3", "5,2", "a,b"):
+        with pytest.raises(SystemExit):
+            domain_stats.main(["--images", ".", "--noise-sigma", bad])
+    assert "--noise-sigma" in capsys.readouterr().err
