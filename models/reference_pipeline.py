@@ -45,7 +45,7 @@ def median_colour(img: np.ndarray) -> np.ndarray:
 
 def plant_colour(img: np.ndarray) -> np.ndarray:
     """Green or senescent pixels, white-balanced on the image median (region.rs)."""
-    white = np.median(img.reshape(-1, 3), axis=0).clip(1, None)
+    white = median_colour(img).astype(np.float32).clip(1, None)
     n = img.astype(np.float32) / white
     r, g, b = n[..., 0], n[..., 1], n[..., 2]
     backlit = (np.maximum(np.maximum(r, g), b) < 0.5) & (g - b > 0.05) & (g >= r - 0.03)
