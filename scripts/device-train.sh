@@ -21,12 +21,12 @@
 # item 00), add `--tips --max-tip-gap 8` to TRAIN_ARGS: the data made here has
 # leaf_tips and leaf_tip_gaps, and the exports then have the fourth output.
 # On the GPU, `--bf16` in TRAIN_ARGS runs the network under bfloat16 autocast
-# (1.3x faster steps on the dev CPU, the same counts: MODEL.md, "bfloat16
+# (1.3x faster steps on the dev CPU, the same counts: models/EXPERIMENTS.md, "bfloat16
 # autocast and the loader"); keep --freeze-bn with it.
 # Environment (defaults in brackets): PLANTS [1200], SEED [100: no training or
 # test set uses it], PRESETS [the stage-4 mix, a fifth maize], STEPS [4000],
 # BATCH [16], CROP [512], LR [1e-4], DEVICE [cuda], WORKERS [14],
-# INIT [.device/init.pt], TRAIN_ARGS [--freeze-bn; models/MODEL.md, "Why every
+# INIT [.device/init.pt], TRAIN_ARGS [--freeze-bn; models/EXPERIMENTS.md, "Why every
 # fine-tune of s10 lost", says what --small-center-weight does to each set],
 # OUT_DIR [$OUT], WORK [/tmp/phyllo-device], PYTHON [python3], GEN [.device/phyllo-gen],
 # GEN_ARGS [--dead-remnants 0.5: half the plants keep their dead leaves' dried

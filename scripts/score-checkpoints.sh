@@ -9,7 +9,7 @@
 # THRESHOLDS="0.2 0.3" scores each checkpoint at each centre threshold (default:
 # the contract's only). Fine-tuning lowers the centre peaks, so a checkpoint
 # judged at the threshold calibrated for another model looks worse than it
-# counts (models/MODEL.md, "The centre loss and the count").
+# counts (models/EXPERIMENTS.md, "The centre loss and the count").
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 usage="usage: score-checkpoints.sh RUN_DIR DATASET [START_CHECKPOINT]"

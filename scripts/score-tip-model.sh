@@ -6,7 +6,7 @@
 #   prints count_rules (calibration, real frames, real crops) and tip_match
 #   (real frames, tips-s31 and tips-s32 val) tables.
 # Data: CALIB [/work/data/calib-s700001], TIPS_SETS ["/work/data/tips-s31 /work/data/tips-s32"],
-#   PHYLLO_DEV_DATA [../shared/data/unl-maize-dev]; models/MODEL.md ("Leaf tips") has the
+#   PHYLLO_DEV_DATA [../shared/data/unl-maize-dev]; models/EXPERIMENTS.md ("Leaf tips") has the
 #   phyllo-gen commands that make them.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)

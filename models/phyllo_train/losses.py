@@ -40,7 +40,7 @@ def center_focal_loss(pred: torch.Tensor, target: torch.Tensor, alpha: float = 2
 
     The MSE is paid over every pixel, so a small leaf's peak is a few dozen
     pixels out of a crop's tens of thousands, and a fine-tune lowers it by
-    blurring neighbouring peaks into one (models/MODEL.md, session 17: lower
+    blurring neighbouring peaks into one (models/EXPERIMENTS.md, session 17: lower
     centre MSE, fewer leaves counted). This term is paid per centre: a missed
     peak costs about -log(p), a spurious one away from every centre
     -log(1 - p), and pixels near a centre are forgiven by ``(1 - target) ** beta``.

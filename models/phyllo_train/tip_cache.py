@@ -6,7 +6,7 @@ The base never changes while the tip head trains, so each augmented crop's
 features (stem at stride 2, decoder at stride 4) and tip target are
 computed once and written to disk as float16 memory maps. On two cores this
 trains the head 1.4 times as fast as live crops (5.3 against 3.8 crops/s
-at batch 8, 384²; models/MODEL.md): the head's own backward pass at stride 2
+at batch 8, 384²; models/EXPERIMENTS.md, "Leaf tips"): the head's own backward pass at stride 2
 costs more than the base's forward. Each pass over the training images uses
 a new augmentation draw (the dataset's epoch), so ``--passes`` sets how
 many views of each image the cache holds. A cache is filled in order and

@@ -200,7 +200,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--weight-decay", type=float, default=1e-4)
     ap.add_argument("--optimizer", choices=["adamw", "sgd"], default="adamw",
                     help="adamw (the shipped recipe) or sgd with Nesterov --momentum (a fine-tune of s10 with it "
-                         "counted worse: models/MODEL.md, \"The centre loss and the count\")")
+                         "counted worse: models/EXPERIMENTS.md, \"The centre loss and the count\")")
     ap.add_argument("--momentum", type=float, default=0.9, help="SGD momentum (with --optimizer sgd)")
     ap.add_argument("--warmup", type=int, default=200)
     ap.add_argument("--ema", type=float, default=0.999, help="EMA decay of weights used for val/export; 0 = off")

@@ -7,7 +7,7 @@ One row per checkpoint (its exported, EMA weights): the training losses on
 whole tiles without augmentation, and the count agreement of the Python
 decoder on those tiles (no small-plant zoom, so lower than `phyllo eval`'s).
 It asks whether a lower training loss means a better count, which for the
-centre MSE it does not (models/MODEL.md, "The centre loss and the count").
+centre MSE it does not (models/EXPERIMENTS.md, "The centre loss and the count").
 """
 
 from __future__ import annotations

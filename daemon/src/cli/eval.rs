@@ -276,7 +276,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
         println!("source   {title}");
         println!(
-            "data     {} ({} items read; sha256 of names, files and truths, models/MODEL.md records each set's)",
+            "data     {} ({} items read; sha256 of names, files and truths, models/eval-sets.tsv records each set's)",
             fingerprint.hex(),
             fingerprint.items()
         );
