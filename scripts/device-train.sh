@@ -18,7 +18,7 @@
 # has 15; generation runs at roughly 8x this machine's 2-core speed.
 #
 # To train the leaf-tip head with every layer at once (MODEL.md, next steps
-# item 00), add `--tips --max-tip-gap 8` to TRAIN_ARGS: the data made here has
+# item 1), add `--tips --max-tip-gap 8` to TRAIN_ARGS: the data made here has
 # leaf_tips and leaf_tip_gaps, and the exports then have the fourth output.
 # On the GPU, `--bf16` in TRAIN_ARGS runs the network under bfloat16 autocast
 # (1.3x faster steps on the dev CPU, the same counts: models/EXPERIMENTS.md, "bfloat16
