@@ -12,37 +12,35 @@ real=${2:-$root/../shared/data/unl-maize-dev}
 py=${PYTHON:-$root/models/.venv/bin/python}
 bin=$root/target/release/phyllo
 cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
+filters=(q95 gauss0.6 gauss1.0 median3)
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-"$py" - "$real" "$tmp" <<'PY'
+"$py" - "$real" "$tmp" "${filters[@]}" <<'PY'
 import pathlib, sys
 from PIL import Image, ImageFilter
 
 real, out = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
-filters = {
-    "none": lambda im: im,
-    "q95": lambda im: im,
+apply = {
+    "q95": lambda im: im,  # the re-encode alone, which every filter below adds
     "gauss0.6": lambda im: im.filter(ImageFilter.GaussianBlur(0.6)),
     "gauss1.0": lambda im: im.filter(ImageFilter.GaussianBlur(1.0)),
     "median3": lambda im: im.filter(ImageFilter.MedianFilter(3)),
 }
-for name, apply in filters.items():
+for name in sys.argv[3:]:
     for sub in ("images", "crops"):
         dest = out / name / sub
         dest.mkdir(parents=True)
         for path in sorted((real / sub).glob("*.jpg")):
-            if name == "none":
-                # the untouched file, so the baseline row is the daemon's own
-                (dest / path.name).symlink_to(path.resolve())
-            else:
-                apply(Image.open(path).convert("RGB")).save(dest / path.name, quality=95)
+            apply[name](Image.open(path).convert("RGB")).save(dest / path.name, quality=95)
 PY
 echo "| filter | set | images | exact | within ±1 | RMSE | MAE | bias | R² |"
 echo "|---|---|---:|---:|---:|---:|---:|---:|---:|"
-for f in none q95 gauss0.6 gauss1.0 median3; do
+for f in none "${filters[@]}"; do
+  dir=$tmp/$f
+  [[ $f == none ]] && dir=$real # the untouched files: the daemon's own numbers
   for set in "frames leaf_tips.csv images" "crops crops_counts.csv crops"; do
     read -r label csv sub <<<"$set"
-    "$bin" eval --threads "${THREADS:-2}" --model "$model" --counts "$real/$csv" --images "$tmp/$f/$sub" 2>/dev/null |
+    "$bin" eval --threads "${THREADS:-2}" --model "$model" --counts "$real/$csv" --images "$dir/$sub" 2>/dev/null |
       awk -v l="$f | $label" '/^\| images/ {getline; getline; sub(/^\|/, ""); print "| " l " |" $0; exit}'
   done
 done
