@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # Renders every synthetic evaluation set listed in models/eval-sets.tsv that is
 # not on disk yet, with the command recorded there, so that a fresh machine can
-# rerun the model card's numbers. With --check, counts each set once with the
-# shipped model and compares the data fingerprint `phyllo eval` prints with the
-# recorded one: a mismatch means the generator has changed since the card's
-# numbers were measured.
+# rerun the model card's numbers. With --check, reads each set's data
+# fingerprint (`phyllo eval --fingerprint-only`: no model, seconds) and compares
+# it with the recorded one: a mismatch means the generator has changed since
+# the card's numbers were measured.
 # Usage: scripts/make-eval-sets.sh [--check] [SET...]   (default: every set)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -34,7 +34,7 @@ while IFS=$'\t' read -r set fingerprint command; do
     "${argv[@]}"
   fi
   if ((check)); then
-    got=$(target/release/phyllo eval --threads "${THREADS:-2}" --dataset "$out" --split "$split" 2>/dev/null |
+    got=$(target/release/phyllo eval --fingerprint-only --dataset "$out" --split "$split" 2>/dev/null |
       awk '/^data/ {print $2; exit}')
     if [[ "$got" == "$fingerprint" ]]; then
       echo "$name: fingerprint $got as recorded"

@@ -23,17 +23,18 @@ fn evaluates_a_generated_dataset_against_its_labels() {
     let v: Value = serde_json::from_str(stdout.trim()).unwrap();
     assert_eq!(v["metrics"]["images"], 4);
     // The same command elsewhere renders the same data, and the fingerprint
-    // says so: what makes a rerun comparable with a number in MODEL.md.
+    // says so: what makes a rerun comparable with a number in MODEL.md. Read
+    // without a model (--fingerprint-only), it is the full evaluation's.
     let again = tmp.path().join("again");
     generate_seed_77(&again);
     let fingerprint = |dir: &std::path::Path| {
         let (out, stdout, stderr) = run(phyllo()
-            .args(["eval", "--split", "all", "--json", "--model"])
-            .arg(untrained_model())
+            .args(["eval", "--fingerprint-only", "--split", "all", "--json"])
             .arg("--dataset")
             .arg(dir));
         assert!(out.status.success(), "{stderr}");
         let v: Value = serde_json::from_str(stdout.trim()).unwrap();
+        assert_eq!(v["items"], 4, "{v}");
         v["fingerprint"].as_str().unwrap().to_string()
     };
     assert_eq!(v["fingerprint"].as_str().unwrap().len(), 16, "{v}");
@@ -144,6 +145,21 @@ fn evaluates_real_images_with_human_counts() {
         v["fingerprint"].as_str(),
         Some(recorded_fingerprint("real-frames").as_str()),
         "the development frames or their counts changed: models/eval-sets.tsv no longer names them"
+    );
+    // The crops' fingerprint, read without a model, is the recorded one too.
+    let (out, stdout, stderr) = run(phyllo()
+        .args(["eval", "--fingerprint-only", "--counts"])
+        .arg(dev.join("crops_counts.csv"))
+        .arg("--images")
+        .arg(dev.join("crops")));
+    assert!(out.status.success(), "{stderr}");
+    let data_line = stdout
+        .lines()
+        .find(|l| l.starts_with("data "))
+        .unwrap_or_default();
+    assert!(
+        data_line.contains(&recorded_fingerprint("real-crops")),
+        "{stdout}"
     );
     assert!(v["per_view"]["SV_108"]["images"] == 10, "{v}");
     let confusion_total: u64 = v["confusion"]

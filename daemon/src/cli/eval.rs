@@ -66,10 +66,18 @@ pub struct Args {
     /// its extra leaves crossed, as `<name>.tips.png` in this directory.
     #[arg(long, value_name = "DIR", requires = "counts")]
     pub tip_overlays: Option<PathBuf>,
+    /// Only read the data and print its fingerprint (the `data` line, or
+    /// `source`, `fingerprint` and `items` with --json): no model is loaded,
+    /// so a set can be checked against models/eval-sets.tsv in seconds.
+    #[arg(long)]
+    pub fingerprint_only: bool,
 }
 
 /// Runs the evaluation.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    if args.fingerprint_only {
+        return print_fingerprint(&args);
+    }
     let c = Contract::embedded();
     let mut config = args.counter.config()?;
     let dataset_mode = args.dataset.is_some();
@@ -115,7 +123,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 let label = image::load_from_memory(&label_bytes)
                     .with_context(|| format!("cannot decode label {}", item.label.display()))?
                     .into_luma16();
-                fingerprint.add(&item.name, &[&bytes, &label_bytes]);
+                fingerprint.add_pair(&item, &bytes, &label_bytes);
                 let (w, h) = (label.width() as usize, label.height() as usize);
                 if [w as u32, h as u32] != analysis.result.image_size {
                     bail!(
@@ -167,9 +175,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             let outcome = (|| -> anyhow::Result<(u32, Option<TipOutcome>)> {
                 let bytes = std::fs::read(&hc.image)
                     .with_context(|| format!("cannot read {}", hc.image.display()))?;
-                let name = hc.image.file_name().map(|f| f.to_string_lossy().into_owned());
-                let truth = format!("{} {:?}", hc.count, hc.tips);
-                fingerprint.add(&name.unwrap_or_default(), &[&bytes, truth.as_bytes()]);
+                fingerprint.add_human_count(&hc, &bytes);
                 let analysis = counter.analyse_bytes(&hc.image, &bytes)?;
                 let Some(tips) = &hc.tips else {
                     return Ok((analysis.result.leaf_count, None));
@@ -275,11 +281,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             }
         );
         println!("source   {title}");
-        println!(
-            "data     {} ({} items read; sha256 of names, files and truths, models/eval-sets.tsv records each set's)",
-            fingerprint.hex(),
-            fingerprint.items()
-        );
+        print_data_line(&fingerprint);
         if args.per_image {
             for p in &pairs {
                 println!(
@@ -343,6 +345,46 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         ExitCode::from(1)
     })
+}
+
+/// `--fingerprint-only`: reads the data as an evaluation would and prints its digest.
+fn print_fingerprint(args: &Args) -> anyhow::Result<ExitCode> {
+    let (source, (fingerprint, failed)) = if let Some(dir) = &args.dataset {
+        let split = (args.split != "all").then_some(args.split.as_str());
+        (dir.display().to_string(), Fingerprint::of_dataset(dir, split)?)
+    } else if let (Some(csv), Some(images)) = (&args.counts, &args.images) {
+        (csv.display().to_string(), Fingerprint::of_counts(csv, images)?)
+    } else {
+        bail!("give --dataset DIR, or --counts CSV with --images DIR");
+    };
+    if args.json {
+        let v = json!({
+            "source": source,
+            "fingerprint": fingerprint.hex(),
+            "items": fingerprint.items(),
+            "failed": failed,
+        });
+        println!("{v}");
+    } else {
+        println!("source   {source}");
+        print_data_line(&fingerprint);
+        for f in &failed {
+            println!("failed: {f}");
+        }
+    }
+    Ok(if failed.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+fn print_data_line(fingerprint: &Fingerprint) {
+    println!(
+        "data     {} ({} items read; sha256 of names, files and truths, models/eval-sets.tsv records each set's)",
+        fingerprint.hex(),
+        fingerprint.items()
+    );
 }
 
 fn print_row(m: &CountMetrics) {

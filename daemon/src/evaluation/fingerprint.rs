@@ -5,7 +5,12 @@
 //! machine, and any change to the generator's look changes them: a number in
 //! the model card is only comparable with a rerun when the fingerprints agree.
 
+use std::path::Path;
+
+use anyhow::Context;
 use sha2::{Digest, Sha256};
+
+use super::sources::{self, DatasetItem, HumanCount};
 
 /// Running SHA-256 over each evaluated item's name, files and truth.
 #[derive(Debug, Clone, Default)]
@@ -35,6 +40,47 @@ impl Fingerprint {
     pub fn hex(&self) -> String {
         let digest = self.hasher.clone().finalize();
         digest[..8].iter().map(|b| format!("{b:02x}")).collect()
+    }
+
+    /// Adds one phyllo-gen pair: its manifest name, image bytes and label bytes.
+    pub fn add_pair(&mut self, item: &DatasetItem, image: &[u8], label: &[u8]) {
+        self.add(&item.name, &[image, label]);
+    }
+
+    /// Adds one human-counted image: its file name, bytes, count and marked tips.
+    pub fn add_human_count(&mut self, hc: &HumanCount, image: &[u8]) {
+        let name = hc.image.file_name().map(|f| f.to_string_lossy().into_owned());
+        let truth = format!("{} {:?}", hc.count, hc.tips);
+        self.add(&name.unwrap_or_default(), &[image, truth.as_bytes()]);
+    }
+
+    /// The fingerprint of a phyllo-gen split read without a model, and the
+    /// items whose files could not be read (left out, as `phyllo eval` leaves
+    /// out items it fails on).
+    pub fn of_dataset(dir: &Path, split: Option<&str>) -> anyhow::Result<(Self, Vec<String>)> {
+        let mut f = Self::default();
+        let mut failed = Vec::new();
+        for item in sources::read_manifest(dir, split)? {
+            let read = |p: &Path| std::fs::read(p).with_context(|| format!("cannot read {}", p.display()));
+            match read(&item.image).and_then(|i| Ok((i, read(&item.label)?))) {
+                Ok((image, label)) => f.add_pair(&item, &image, &label),
+                Err(e) => failed.push(format!("{e:#}")),
+            }
+        }
+        Ok((f, failed))
+    }
+
+    /// The fingerprint of a human-count CSV and its images, read without a model.
+    pub fn of_counts(csv: &Path, images: &Path) -> anyhow::Result<(Self, Vec<String>)> {
+        let mut f = Self::default();
+        let mut failed = Vec::new();
+        for hc in sources::read_counts(csv, images)? {
+            match std::fs::read(&hc.image) {
+                Ok(bytes) => f.add_human_count(&hc, &bytes),
+                Err(e) => failed.push(format!("cannot read {}: {e}", hc.image.display())),
+            }
+        }
+        Ok((f, failed))
     }
 }
 
