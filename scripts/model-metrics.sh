@@ -14,25 +14,29 @@ dev=${PHYLLO_DEV_DATA:-$root/../shared/data/unl-maize-dev}
 bin=$root/target/release/phyllo
 cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
 sets=$root/models/eval-sets.tsv
+eval_json=$root/scripts/eval_json.py
+rows=()
+intervals=()
 row() { # label, key in models/eval-sets.tsv, then phyllo eval arguments
   local label=$1 key=$2
   shift 2
   local out got want check
-  out=$("$bin" eval --threads "${THREADS:-2}" --model "$model" "$@" 2>/dev/null)
-  got=$(echo "$out" | awk '/^data / {print $2; exit}')
+  out=$("$bin" eval --threads "${THREADS:-2}" --model "$model" --json "$@" 2>/dev/null)
+  got=$("$eval_json" field fingerprint <<<"$out")
   want=$(awk -F'\t' -v k="$key" '$1 == k {print $2; exit}' "$sets")
   if [ "$got" = "$want" ]; then check="$got (as recorded)"; else check="$got (DIFFERS from ${want:-nothing recorded}: not comparable with models/MODEL.md)"; fi
-  echo "$out" | awk -v l="$label" -v c="$check" '/^\| images/ {getline; getline; sub(/^\|/, ""); print "| " l " |" $0 " " c " |"; exit}'
-  intervals+=("$(echo "$out" | sed -n 's/^95 % intervals[^:]*: exact \([^;]*\); within ±1 \([^;]*\); RMSE \([^;]*\); MAE [^;]*; bias \(.*\)$/| '"$label"' | \1 | \2 | \3 | \4 |/p')")
+  model_id=$("$eval_json" field model <<<"$out")
+  rows+=("$("$eval_json" row "$label" "$check" <<<"$out")")
+  intervals+=("$("$eval_json" intervals "$label" <<<"$out")")
 }
-intervals=()
-echo "model: $("$bin" eval --threads 1 --model "$model" --counts "$dev/leaf_tips.csv" --images "$dev/images" 2>/dev/null | awk '/^model/ {print $2; exit}')"
-echo
-echo "| set | n | exact | within ±1 | RMSE | MAE | bias | R² | data (models/eval-sets.tsv) |"
-echo "|---|---:|---:|---:|---:|---:|---:|---:|---|"
 row "synthetic frames, $(basename "$test")" "$(basename "$test")/val" --dataset "$test" --split val
 row "real full frames" real-frames --counts "$dev/leaf_tips.csv" --images "$dev/images"
 row "real crops" real-crops --counts "$dev/crops_counts.csv" --images "$dev/crops"
+echo "model: $model_id"
+echo
+echo "| set | n | exact | within ±1 | RMSE | MAE | bias | R² | data (models/eval-sets.tsv) |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---|"
+printf '%s\n' "${rows[@]}"
 echo
 echo "95 % intervals (Wilson for exact and ±1; bootstrap over images for RMSE and bias; printed by phyllo eval):"
 echo

@@ -40,7 +40,7 @@ for f in none "${filters[@]}"; do
   [[ $f == none ]] && dir=$real # the untouched files: the daemon's own numbers
   for set in "frames leaf_tips.csv images" "crops crops_counts.csv crops"; do
     read -r label csv sub <<<"$set"
-    "$bin" eval --threads "${THREADS:-2}" --model "$model" --counts "$real/$csv" --images "$dir/$sub" 2>/dev/null |
-      awk -v l="$f | $label" '/^\| images/ {getline; getline; sub(/^\|/, ""); print "| " l " |" $0; exit}'
+    "$bin" eval --threads "${THREADS:-2}" --model "$model" --counts "$real/$csv" --images "$dir/$sub" --json 2>/dev/null |
+      "$root/scripts/eval_json.py" row "$f | $label"
   done
 done

@@ -31,7 +31,7 @@ for ck in $start "$run"/step-*.pt; do
   fi
   for t in ${THRESHOLDS:-contract}; do
     if [ "$t" = contract ]; then args=(); label=$name; else args=(--center-threshold "$t"); label="$name @ $t"; fi
-    "$bin" eval --threads "${THREADS:-2}" --model "$onnx" --dataset "$data" --split all "${args[@]}" 2>/dev/null |
-      awk -v l="$label" '/^\| images/ {getline; getline; sub(/^\|/, ""); print "| " l " |" $0; exit}'
+    "$bin" eval --threads "${THREADS:-2}" --model "$onnx" --dataset "$data" --split all --json "${args[@]}" 2>/dev/null |
+      "$root/scripts/eval_json.py" row "$label"
   done
 done

@@ -341,3 +341,50 @@ fn generate_seed_77(dir: &std::path::Path) {
         .arg(dir));
     assert!(out.status.success(), "phyllo-gen: {stderr}");
 }
+
+/// The model-card scripts read `phyllo eval --json` through
+/// `scripts/eval_json.py`; its row must be the text table's row.
+#[test]
+fn script_rows_from_json_match_the_text_table() {
+    let dev = dev_data().expect("development data beside the repo");
+    let eval = |json: bool| {
+        let mut cmd = phyllo();
+        cmd.args(["eval", "--model"])
+            .arg(untrained_model())
+            .arg("--counts")
+            .arg(dev.join("crops_counts.csv"))
+            .arg("--images")
+            .arg(dev.join("crops"));
+        if json {
+            cmd.arg("--json");
+        }
+        let (out, stdout, stderr) = run(&mut cmd);
+        assert!(out.status.success(), "{stderr}");
+        stdout
+    };
+    let text = eval(false);
+    let table_row = text
+        .lines()
+        .skip_while(|l| !l.starts_with("| images"))
+        .nth(2)
+        .expect("a metrics row under the table's header")
+        .to_string();
+    let mut script = Command::new("python3")
+        .arg(phyllo_e2e::repo_root().join("scripts/eval_json.py"))
+        .args(["row", "LABEL"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("python3 runs scripts/eval_json.py");
+    use std::io::Write;
+    script
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(eval(true).as_bytes())
+        .unwrap();
+    let out = script.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let script_row = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(script_row.trim(), format!("| LABEL {}", table_row.trim()));
+}
