@@ -5,7 +5,7 @@ use crate::dataset::{self, DatasetArgs};
 use crate::plant::{growth::PlantTraits, preset::Preset, Plant};
 use crate::render::{self, look::Look, Quality, Scene, Stage, View, Window};
 use crate::sequence::{self, Date, SequenceArgs};
-use crate::{bench, png_io, rng};
+use crate::{bench, png_io, rng, sampling};
 use anyhow::{bail, Context};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -61,6 +61,13 @@ enum Command {
         /// stub (labelled stem); overrides every preset's `dead_remnant_chance`.
         #[arg(long)]
         dead_remnants: Option<f32>,
+        /// Oldest plant age in days. Past the default 8 weeks maize reaches the
+        /// 14–15 leaves of the facility's late plants (with --max-leaves).
+        #[arg(long, default_value_t = sampling::MAX_AGE)]
+        max_age: f32,
+        /// Most living leaves of a plant (the paper's 13 by default).
+        #[arg(long, default_value_t = sampling::MAX_LEAVES)]
+        max_leaves: usize,
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
@@ -306,10 +313,23 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             spp,
             masks,
             dead_remnants,
+            max_age,
+            max_leaves,
             quiet,
         } => {
             if !(16..=4096).contains(&size) {
                 bail!("--size {size} must lie in 16..=4096");
+            }
+            let ages = sampling::AgeRange {
+                max_age,
+                max_leaves,
+                ..Default::default()
+            };
+            if !(ages.max_age > ages.min_age && ages.max_age <= 365.0) {
+                bail!("--max-age {max_age} must lie in ({}, 365] days", ages.min_age);
+            }
+            if ages.max_leaves < ages.min_leaves {
+                bail!("--max-leaves {max_leaves} must be at least {}", ages.min_leaves);
             }
             if !(0.0..=1.0).contains(&val_fraction) {
                 bail!("--val-fraction {val_fraction} must lie in [0, 1]");
@@ -323,6 +343,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 full_frame,
                 val_fraction,
                 presets: with_dead_remnants(parse_presets(preset.as_deref())?, dead_remnants)?,
+                ages,
                 shard: parse_shard(&shard)?,
                 quality: quality(spp)?,
                 masks,
@@ -468,7 +489,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             if files.is_empty() {
                 for p in Preset::builtins()? {
                     println!(
-                        "{:8} {:8} weight {:.1}  {}",
+                        "{:10} {:8} weight {:.1}  {}",
                         p.name, p.species, p.weight, p.description
                     );
                 }

@@ -37,6 +37,8 @@ pub struct DatasetArgs {
     pub val_fraction: f32,
     /// Presets to draw from (weighted).
     pub presets: Vec<Preset>,
+    /// Ages and living-leaf counts the plants are drawn from.
+    pub ages: sampling::AgeRange,
     /// This shard `(i, n)`.
     pub shard: (u64, u64),
     /// Sampling quality.
@@ -198,10 +200,10 @@ pub struct PlantPlan {
 
 /// Plans dataset plant `index` from the master seed: the same inputs always
 /// give the same plant, whatever else the run renders.
-pub fn plan_plant(presets: &[Preset], seed: u64, index: u64) -> PlantPlan {
+pub fn plan_plant(presets: &[Preset], ages: &sampling::AgeRange, seed: u64, index: u64) -> PlantPlan {
     let preset = sampling::pick_preset(presets, seed, index).clone();
     let traits = PlantTraits::sample(&preset, rng::derive(seed, "plant", index));
-    let age = sampling::pick_age(&traits, seed, index);
+    let age = sampling::pick_age(&traits, seed, index, ages);
     let look = Look::randomised(rng::derive(seed, "look", index));
     PlantPlan {
         preset,
@@ -212,7 +214,7 @@ pub fn plan_plant(presets: &[Preset], seed: u64, index: u64) -> PlantPlan {
 }
 
 fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) -> anyhow::Result<()> {
-    let plan = plan_plant(&args.presets, args.seed, p);
+    let plan = plan_plant(&args.presets, &args.ages, args.seed, p);
     let plant = Plant::build(&plan.traits, plan.age);
     let panicle = plan
         .preset

@@ -15,6 +15,32 @@ pub const MIN_LEAVES: usize = 4;
 /// Most living leaves of a dataset plant.
 pub const MAX_LEAVES: usize = 13;
 
+/// The ages a dataset plant is drawn from, and the living-leaf counts it
+/// must have there. The default is the paper's (1–8 weeks, 4–13 leaves);
+/// the facility's late maize reaches 14–15 leaves, which needs older plants.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AgeRange {
+    /// Youngest age, days.
+    pub min_age: f32,
+    /// Oldest age, days.
+    pub max_age: f32,
+    /// Fewest living leaves.
+    pub min_leaves: usize,
+    /// Most living leaves.
+    pub max_leaves: usize,
+}
+
+impl Default for AgeRange {
+    fn default() -> Self {
+        Self {
+            min_age: MIN_AGE,
+            max_age: MAX_AGE,
+            min_leaves: MIN_LEAVES,
+            max_leaves: MAX_LEAVES,
+        }
+    }
+}
+
 /// Picks a preset for plant `index`, weighted by the presets' weights.
 pub fn pick_preset(presets: &[Preset], seed: u64, index: u64) -> &Preset {
     if presets.len() == 1 {
@@ -35,21 +61,22 @@ pub fn pick_preset(presets: &[Preset], seed: u64, index: u64) -> &Preset {
         .unwrap_or(&presets[0])
 }
 
-/// Draws an age in 1–8 weeks at which the plant has 4–13 living leaves
-/// (the paper's ranges). Falls back to the closest age found.
-pub fn pick_age(traits: &PlantTraits, seed: u64, index: u64) -> f32 {
+/// Draws an age in `range` at which the plant has the range's number of
+/// living leaves (by default 4–13 in 1–8 weeks, the paper's ranges). Falls
+/// back to the closest age found.
+pub fn pick_age(traits: &PlantTraits, seed: u64, index: u64, range: &AgeRange) -> f32 {
     let mut r = rng::stream(seed, "age", index);
-    let mut best = (usize::MAX, MIN_AGE);
+    let mut best = (usize::MAX, range.min_age);
     for _ in 0..64 {
-        let age = (r.uniform(MIN_AGE, MAX_AGE) * 4.0).round() / 4.0;
+        let age = (r.uniform(range.min_age, range.max_age) * 4.0).round() / 4.0;
         let n = traits.living_on(age);
-        if (MIN_LEAVES..=MAX_LEAVES).contains(&n) {
+        if (range.min_leaves..=range.max_leaves).contains(&n) {
             return age;
         }
-        let miss = if n < MIN_LEAVES {
-            MIN_LEAVES - n
+        let miss = if n < range.min_leaves {
+            range.min_leaves - n
         } else {
-            n - MAX_LEAVES
+            n - range.max_leaves
         };
         if miss < best.0 {
             best = (miss, age);
@@ -104,5 +131,39 @@ pub fn crop_window(scene: &Scene, camera: &Camera, view: View, size: u32) -> Win
                 height: size,
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn living_counts(range: &AgeRange) -> Vec<usize> {
+        let maize = Preset::load("maize-late").unwrap();
+        (0..200)
+            .map(|i| {
+                let traits = PlantTraits::sample(&maize, rng::derive(9, "plant", i));
+                traits.living_on(pick_age(&traits, 9, i, range))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn default_ages_keep_the_papers_leaf_range_and_a_wider_range_reaches_late_maize() {
+        let paper = living_counts(&AgeRange::default());
+        assert!(paper.iter().all(|n| (MIN_LEAVES..=MAX_LEAVES).contains(n)));
+        let late = AgeRange {
+            max_age: 84.0,
+            max_leaves: 16,
+            ..Default::default()
+        };
+        let counts = living_counts(&late);
+        assert!(counts.iter().all(|n| (MIN_LEAVES..=16).contains(n)));
+        // The facility's late maize shows 14–15 leaves; the default ages never do.
+        let late_maize = counts.iter().filter(|&&n| n >= 14).count();
+        assert!(
+            late_maize >= 10,
+            "only {late_maize} of 200 maize plants reach 14 leaves"
+        );
     }
 }

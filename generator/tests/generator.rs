@@ -54,6 +54,7 @@ fn args(out: &Path, shard: (u64, u64)) -> DatasetArgs {
         full_frame: false,
         val_fraction: 0.5,
         presets: vec![Preset::load("btx623").unwrap(), Preset::load("maize").unwrap()],
+        ages: Default::default(),
         shard,
         quality: Quality { spp: 1, max_depth: 2 },
         masks: false,
@@ -405,7 +406,7 @@ fn dataset_plants_span_the_papers_ranges() {
     let presets = Preset::builtins().unwrap();
     let mut ages = Vec::new();
     for i in 0..60 {
-        let plan = dataset::plan_plant(&presets, 3, i);
+        let plan = dataset::plan_plant(&presets, &Default::default(), 3, i);
         let n = plan.traits.living_on(plan.age);
         assert!((4..=13).contains(&n), "plant {i}: {n} leaves at {} d", plan.age);
         assert!((7.0..=56.0).contains(&plan.age));

@@ -160,8 +160,10 @@ fn panicle(mesh: &mut Mesh, base: f32, length: f32, radius: f32) {
         .map(|k| {
             let f = k as f32 / rings as f32;
             let y = base + length * f;
-            // Spindle: widest below the middle, with lumpy branches.
-            let r = radius * (PI * f).sin().powf(0.6) * (1.0 + 0.15 * (f * 23.0).sin());
+            // Spindle: widest below the middle, with lumpy branches. In f32,
+            // sin(PI) is a hair below zero, and its 0.6th power is NaN: the
+            // clamp keeps the tip a point (a NaN vertex panics the BVH build).
+            let r = radius * (PI * f).sin().max(0.0).powf(0.6) * (1.0 + 0.15 * (f * 23.0).sin());
             (0..=sides)
                 .map(|j| {
                     let a = 2.0 * PI * j as f32 / sides as f32;
@@ -224,6 +226,19 @@ mod tests {
             }
             assert_eq!(plant.leaf_tip(0), None);
             assert_eq!(plant.leaf_tip(plant.leaf_count() as u16 + 1), None);
+        }
+    }
+
+    #[test]
+    fn flowering_plants_have_finite_vertices() {
+        // Panicles emerge from day 62, past the dataset's default ages; older
+        // plants (dataset --max-age, long sequences) must still build.
+        for seed in 0..4 {
+            let preset = Preset::load("btx623").unwrap();
+            let plant = Plant::build(&PlantTraits::sample(&preset, seed), 80.0);
+            assert!(plant.state.panicle.is_some(), "seed {seed}: no panicle at day 80");
+            let bad = plant.mesh.positions.iter().filter(|p| !p.is_finite()).count();
+            assert_eq!(bad, 0, "seed {seed}: {bad} non-finite vertices");
         }
     }
 

@@ -214,6 +214,7 @@ const BUILTIN: &[(&str, &str)] = &[
     ("sc301", include_str!("../../presets/sc301.toml")),
     ("pawaga", include_str!("../../presets/pawaga.toml")),
     ("maize", include_str!("../../presets/maize.toml")),
+    ("maize-late", include_str!("../../presets/maize-late.toml")),
 ];
 
 impl Preset {
