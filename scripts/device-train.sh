@@ -30,7 +30,10 @@
 # fine-tune of s10 lost", says what --small-center-weight does to each set],
 # OUT_DIR [$OUT], WORK [/tmp/phyllo-device], PYTHON [python3], GEN [.device/phyllo-gen],
 # GEN_ARGS [--dead-remnants 0.5: half the plants keep their dead leaves' dried
-# sheaths and blade stubs, labelled stem; models/MODEL.md, next steps].
+# sheaths and blade stubs, labelled stem; models/MODEL.md, next steps]. For the
+# whole season (plants past 8 weeks, 14-16 leaves; models/EXPERIMENTS.md, "Plants
+# past eight weeks"): PRESETS=btx623,pawaga,rtx430,sc301,tx3197,maize:1.7,maize-late:3
+# GEN_ARGS="--dead-remnants 0.5 --max-age 84 --max-leaves 16".
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 plants=${PLANTS:-1200}
