@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Counts one evaluation set under each count rule (centres, split, tips) and
-# tip threshold, one table row each: exact / within one / RMSE / bias.
+# tip threshold, one table row each: exact / within one / RMSE / MAE / bias / R².
 # Only a model with a `tip` output counts differently under the rules.
 # Calibrate on a synthetic set used neither for training nor for testing
 # (models/MODEL.md names it), never on the real dev images.
@@ -15,12 +15,12 @@ thresholds=${3:?tip thresholds}
 shift 3
 bin=$root/target/release/phyllo
 cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
-echo "| count rule | tip threshold | images | exact | within ±1 | RMSE | MAE | bias |"
-echo "|---|---:|---:|---:|---:|---:|---:|---:|"
+echo "| count rule | tip threshold | images | exact | within ±1 | RMSE | MAE | bias | R² |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
 for r in $rules; do
   for t in $thresholds; do
     "$bin" eval --threads "${THREADS:-2}" --model "$model" --json --count-rule "$r" --tip-threshold "$t" "$@" 2>/dev/null |
-      python3 -c "import json,sys; m=json.load(sys.stdin)['metrics']; print(f\"| $r | $t | {m['images']} | {100*m['exact']:.1f}% | {100*m['within_1']:.1f}% | {m['rmse']:.3f} | {m['mae']:.3f} | {m['bias']:+.3f} |\")"
+      "$root/scripts/eval_json.py" row "$r | $t"
     # The centres rule ignores the tip threshold: one row is enough.
     if [ "$r" = centres ]; then break; fi
   done
