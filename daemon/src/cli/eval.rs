@@ -340,11 +340,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             println!("failed: {f}");
         }
     }
-    Ok(if failed.is_empty() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(1)
-    })
+    Ok(exit_code(&failed))
 }
 
 /// `--fingerprint-only`: reads the data as an evaluation would and prints its digest.
@@ -372,11 +368,16 @@ fn print_fingerprint(args: &Args) -> anyhow::Result<ExitCode> {
             println!("failed: {f}");
         }
     }
-    Ok(if failed.is_empty() {
+    Ok(exit_code(&failed))
+}
+
+/// Exit status 1 when any item failed, so that scripts notice.
+fn exit_code(failed: &[String]) -> ExitCode {
+    if failed.is_empty() {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
-    })
+    }
 }
 
 fn print_data_line(fingerprint: &Fingerprint) {
