@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
 # The model card's headline table for one model: the withheld synthetic
-# frames, the real full frames and the real crops, one row each.
+# frames, the real full frames and the real crops, one row each, then the
+# synthetic calibration sets that are on disk (calib-s700001 and
+# calib-s700003-late, the season-wide one, under $CALIB_ROOT).
 # Usage: scripts/model-metrics.sh [MODEL] [TEST_DATASET]
 #   MODEL         default models/phyllo.onnx
-#   TEST_DATASET  default /work/data/test-s900002 (see models/MODEL.md for the
-#                 phyllo-gen command that makes it)
+#   TEST_DATASET  default /work/data/test-s900002 (scripts/make-eval-sets.sh
+#                 renders it and the calibration sets)
 # Real data: $PHYLLO_DEV_DATA, default ../shared/data/unl-maize-dev.
+# CALIB_ROOT: default /work/data; CALIB_SETS="" leaves the calibration rows out.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 model=${1:-$root/models/phyllo.onnx}
@@ -32,6 +35,13 @@ row() { # label, key in models/eval-sets.tsv, then phyllo eval arguments
 row "synthetic frames, $(basename "$test")" "$(basename "$test")/val" --dataset "$test" --split val
 row "real full frames" real-frames --counts "$dev/leaf_tips.csv" --images "$dev/images"
 row "real crops" real-crops --counts "$dev/crops_counts.csv" --images "$dev/crops"
+for set in ${CALIB_SETS-calib-s700001 calib-s700003-late}; do
+  if [ -e "${CALIB_ROOT:-/work/data}/$set/manifest.jsonl" ]; then
+    row "$set (calibration only)" "$set/all" --dataset "${CALIB_ROOT:-/work/data}/$set" --split all
+  else
+    echo "model-metrics: ${CALIB_ROOT:-/work/data}/$set not rendered (scripts/make-eval-sets.sh $set): row left out" >&2
+  fi
+done
 echo "model: $model_id"
 echo
 echo "| set | n | exact | within ±1 | RMSE | MAE | bias | R² | data (models/eval-sets.tsv) |"
