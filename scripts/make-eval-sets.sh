@@ -34,8 +34,8 @@ while IFS=$'\t' read -r set fingerprint command; do
     "${argv[@]}"
   fi
   if ((check)); then
-    got=$(target/release/phyllo eval --fingerprint-only --dataset "$out" --split "$split" 2>/dev/null |
-      awk '/^data/ {print $2; exit}')
+    got=$(target/release/phyllo eval --fingerprint-only --json --dataset "$out" --split "$split" 2>/dev/null |
+      scripts/eval_json.py field fingerprint)
     if [[ "$got" == "$fingerprint" ]]; then
       echo "$name: fingerprint $got as recorded"
     else

@@ -22,6 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .dataset import read_manifest
+from .truth_rules import metrics as count_metrics
+
 EIGHT_WEEKS = 56.0
 PANICLE_DAY = 62.0
 MAIZE = ("maize", "maize-late")
@@ -29,18 +32,17 @@ MAIZE = ("maize", "maize-late")
 
 def metrics(errors: list[int]) -> str:
     """`n | exact / ±1 / RMSE / bias` of predicted minus true counts."""
-    e = np.asarray(errors, dtype=float)
-    if e.size == 0:
+    if not errors:
         return "0 | |"
-    return (f"{e.size} | {100 * np.mean(e == 0):.1f} / {100 * np.mean(np.abs(e) <= 1):.1f} / "
-            f"{np.sqrt(np.mean(e ** 2)):.3f} / {e.mean():+.2f}")
+    # The errors are predicted minus true counts: against a truth of zero they are the predictions.
+    m = count_metrics(np.zeros(len(errors)), np.asarray(errors))
+    return f"{m['images']} | {100 * m['exact']:.1f} / {100 * m['within1']:.1f} / {m['rmse']:.3f} / {m['bias']:+.2f}"
 
 
 def groups(images: list[dict], truth_ranges: list[tuple[int, int]],
            manifest: dict[str, dict] | None = None) -> dict[str, list[int]]:
     """Errors by group name, in print order. `manifest` maps an image path
-    (as the manifest writes it) to its row; an image matches the row whose
-    path its file name ends with."""
+    as the manifest writes it (`images/NAME.png`) to its row."""
     out: dict[str, list[int]] = {"all": []}
     for lo, hi in truth_ranges:
         out[f"truth {lo}–{hi}"] = []
@@ -57,8 +59,6 @@ def groups(images: list[dict], truth_ranges: list[tuple[int, int]],
         if manifest is None:
             continue
         row = manifest.get("/".join(Path(im["file"]).parts[-2:]))
-        if row is None:
-            row = next((r for path, r in manifest.items() if im["file"].endswith(path)), None)
         if row is None:
             raise KeyError(f"{im['file']} is not in the dataset's manifest")
         age, preset = float(row["age_days"]), row["preset"]
@@ -87,8 +87,7 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"{args.run}: no per-image counts (run phyllo eval with --per-image)")
     manifest = None
     if args.dataset is not None:
-        rows = [json.loads(line) for line in (args.dataset / "manifest.jsonl").read_text().splitlines() if line]
-        manifest = {r["image"]: r for r in rows}
+        manifest = {r["image"]: r for r in read_manifest(args.dataset)}
     print("| images | n | exact / ±1 / RMSE / bias |")
     print("|---|---:|---|")
     for name, errors in groups(run["images"], args.truth, manifest).items():

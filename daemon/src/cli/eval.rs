@@ -73,6 +73,13 @@ pub struct Args {
     pub fingerprint_only: bool,
 }
 
+impl Args {
+    /// The manifest split to keep, `None` for `--split all`.
+    fn split_filter(&self) -> Option<&str> {
+        (self.split != "all").then_some(self.split.as_str())
+    }
+}
+
 /// Runs the evaluation.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.fingerprint_only {
@@ -104,7 +111,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     // folder's name only.
     let (title, caption);
     if let Some(dir) = &args.dataset {
-        let split = (args.split != "all").then_some(args.split.as_str());
+        let split = args.split_filter();
         // Until 2026-11-24 the default was the post-processing's minimum leaf
         // area (96 px), which tied the truth to a tuned parameter and gave
         // seedlings with five visible leaves a truth of 0.
@@ -346,7 +353,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 /// `--fingerprint-only`: reads the data as an evaluation would and prints its digest.
 fn print_fingerprint(args: &Args) -> anyhow::Result<ExitCode> {
     let (source, (fingerprint, failed)) = if let Some(dir) = &args.dataset {
-        let split = (args.split != "all").then_some(args.split.as_str());
+        let split = args.split_filter();
         (dir.display().to_string(), Fingerprint::of_dataset(dir, split)?)
     } else if let (Some(csv), Some(images)) = (&args.counts, &args.images) {
         (csv.display().to_string(), Fingerprint::of_counts(csv, images)?)

@@ -60,8 +60,8 @@ impl Fingerprint {
     pub fn of_dataset(dir: &Path, split: Option<&str>) -> anyhow::Result<(Self, Vec<String>)> {
         let mut f = Self::default();
         let mut failed = Vec::new();
+        let read = |p: &Path| std::fs::read(p).with_context(|| format!("cannot read {}", p.display()));
         for item in sources::read_manifest(dir, split)? {
-            let read = |p: &Path| std::fs::read(p).with_context(|| format!("cannot read {}", p.display()));
             match read(&item.image).and_then(|i| Ok((i, read(&item.label)?))) {
                 Ok((image, label)) => f.add_pair(&item, &image, &label),
                 Err(e) => failed.push(format!("{e:#}")),
