@@ -12,6 +12,7 @@ use crate::decode::{decode_rgb, DecodeLimits};
 use crate::error::InferenceError;
 use crate::flip;
 use crate::model::{Model, ModelInfo, ModelOptions};
+use crate::pieces::split_pieces;
 use crate::postprocess::{panoptic, Panoptic, PostprocessParams};
 use crate::region::RegionMode;
 use crate::result::{CountResult, Instance, StageTimings};
@@ -269,6 +270,13 @@ impl Counter {
             c,
             self.config.postprocess.attach_radius,
             self.config.postprocess.min_leaf_area,
+        );
+        split_pieces(
+            &mut pan,
+            c,
+            self.config.postprocess.split_min_area,
+            self.config.postprocess.split_gap,
+            self.config.postprocess.split_max_leaf_share,
         );
         if let Some([x0, y0, x1, y1]) = canvas.plant {
             // The chamber's frames and panels sometimes look leaf-like to the

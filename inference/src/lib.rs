@@ -21,6 +21,7 @@ pub mod error;
 pub mod flip;
 pub mod model;
 pub mod overlay;
+pub mod pieces;
 pub mod postprocess;
 pub mod region;
 pub mod result;

@@ -75,6 +75,16 @@ pub struct PostprocessParams {
     /// How leaves are counted; every rule counts centres with a model that
     /// has no tip output. See [`CountRule`].
     pub count_rule: CountRule,
+    /// A leaf instance's separate pieces of at least this many output
+    /// pixels become leaves of their own (0: off). See [`crate::pieces`].
+    pub split_min_area: u32,
+    /// Pieces of an instance this many output pixels apart or nearer
+    /// (Chebyshev) are one piece.
+    pub split_gap: u32,
+    /// A piece stays with its instance when more than this share of the
+    /// shortest route to the instance's largest piece runs over another leaf
+    /// (occlusion, not a second leaf); 1 splits every large piece.
+    pub split_max_leaf_share: f32,
 }
 
 /// Default [`PostprocessParams::attach_radius`]: 3 output pixels, 24 pixels
@@ -93,6 +103,9 @@ impl From<&PostprocessDefaults> for PostprocessParams {
             tip_nms_kernel: d.tip_nms_kernel,
             tip_reach: DEFAULT_TIP_REACH,
             count_rule: CountRule::default(),
+            split_min_area: 0,
+            split_gap: 1,
+            split_max_leaf_share: 1.0,
         }
     }
 }

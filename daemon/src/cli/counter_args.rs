@@ -72,6 +72,19 @@ pub struct CounterArgs {
     /// output pixels away or nearer.
     #[arg(long, value_name = "PIXELS", default_value_t = DEFAULT_TIP_REACH)]
     pub tip_reach: u32,
+    /// Post-processing: a leaf instance's separate pieces of at least this
+    /// many model output pixels count as leaves of their own (0: off).
+    #[arg(long, value_name = "PIXELS", default_value_t = PostprocessParams::default().split_min_area)]
+    pub split_min_area: u32,
+    /// Post-processing: pieces of one instance this many model output pixels
+    /// apart or nearer are one piece.
+    #[arg(long, value_name = "PIXELS", default_value_t = PostprocessParams::default().split_gap)]
+    pub split_gap: u32,
+    /// Post-processing: a piece stays with its instance when more than this
+    /// share of the shortest route to the instance's largest piece runs over
+    /// another leaf (1: split every large piece).
+    #[arg(long, value_name = "SHARE", default_value_t = PostprocessParams::default().split_max_leaf_share)]
+    pub split_max_leaf_share: f32,
 }
 
 impl CounterArgs {
@@ -86,6 +99,9 @@ impl CounterArgs {
             count_rule: self.count_rule,
             tip_threshold: self.tip_threshold.unwrap_or(defaults.tip_threshold),
             tip_reach: self.tip_reach,
+            split_min_area: self.split_min_area,
+            split_gap: self.split_gap,
+            split_max_leaf_share: self.split_max_leaf_share,
             ..defaults
         };
         Ok(CounterConfig {

@@ -1,0 +1,280 @@
+//! Splitting a leaf instance that lies in separate pieces.
+//!
+//! The decoder joins every thing pixel to the centre its offset points at, so
+//! when the centre head draws one peak for two leaves, both leaves become one
+//! instance even where they lie apart (two leaves on opposite sides of the
+//! stem, a young leaf above an older one). This stage labels each leaf
+//! instance's pixels into pieces, joining pixels up to `gap` output pixels
+//! apart (Chebyshev), and gives every piece beyond the largest that holds at
+//! least `min_area` pixels an instance of its own. Smaller pieces stay with
+//! their instance: a leaf crossed by a thin neighbour leaves such crumbs.
+
+use std::collections::VecDeque;
+
+use phyllo_contract::Contract;
+
+use crate::postprocess::{Panoptic, Segment};
+
+/// Gives each large separate piece of a leaf instance its own instance.
+/// `min_area` 0 disables the stage; `gap` 0 is taken as 1 (8-connected).
+pub fn split_pieces(pan: &mut Panoptic, contract: &Contract, min_area: u32, gap: u32, max_leaf_share: f32) {
+    if min_area == 0 || pan.segments.is_empty() {
+        return;
+    }
+    let (w, h) = (pan.width, pan.height);
+    let g = gap.max(1) as usize;
+    let mut piece = vec![0u32; w * h];
+    let mut queue = VecDeque::new();
+    let mut new_segments: Vec<Segment> = Vec::new();
+    let mut next_id = pan.segments.len() as u32 + 1;
+    for seg in pan.segments.clone() {
+        if !contract.is_thing(seg.class) || seg.area < 2 * min_area {
+            continue;
+        }
+        let id = seg.id;
+        let [bx0, by0, bx1, by1] = seg.bbox.map(|v| v as usize);
+        // Label the pieces inside the instance's box.
+        let mut pieces: Vec<(u32, Vec<usize>)> = Vec::new();
+        for y in by0..by1 {
+            for x in bx0..bx1 {
+                let i = y * w + x;
+                if pan.instance[i] != id || piece[i] != 0 {
+                    continue;
+                }
+                let label = pieces.len() as u32 + 1;
+                let mut pixels = vec![i];
+                piece[i] = label;
+                queue.push_back(i);
+                while let Some(j) = queue.pop_front() {
+                    let (jx, jy) = (j % w, j / w);
+                    for ny in jy.saturating_sub(g)..(jy + g + 1).min(by1) {
+                        for nx in jx.saturating_sub(g)..(jx + g + 1).min(bx1) {
+                            let k = ny * w + nx;
+                            if pan.instance[k] == id && piece[k] == 0 {
+                                piece[k] = label;
+                                pixels.push(k);
+                                queue.push_back(k);
+                            }
+                        }
+                    }
+                }
+                pieces.push((label, pixels));
+            }
+        }
+        if pieces.len() < 2 {
+            continue;
+        }
+        let largest = pieces
+            .iter()
+            .enumerate()
+            .max_by_key(|(n, (_, px))| (px.len(), std::cmp::Reverse(*n)))
+            .map(|(n, _)| n)
+            .expect("two or more pieces");
+        let bridges = bridge_leaf_shares(pan, &piece, &pieces, largest, id);
+        for (n, (_, pixels)) in pieces.iter().enumerate() {
+            if n == largest || (pixels.len() as u32) < min_area {
+                continue;
+            }
+            // A piece reached across another leaf is most likely the same
+            // leaf seen on both sides of the one in front of it.
+            if bridges[n] > max_leaf_share {
+                continue;
+            }
+            let new_id = next_id;
+            next_id += 1;
+            let (mut sx, mut sy) = (0f64, 0f64);
+            let mut bbox = [u32::MAX, u32::MAX, 0, 0];
+            for &k in pixels {
+                pan.instance[k] = new_id;
+                let (x, y) = ((k % w) as u32, (k / w) as u32);
+                sx += f64::from(x);
+                sy += f64::from(y);
+                bbox = [
+                    bbox[0].min(x),
+                    bbox[1].min(y),
+                    bbox[2].max(x + 1),
+                    bbox[3].max(y + 1),
+                ];
+            }
+            let n_px = pixels.len() as f64;
+            new_segments.push(Segment {
+                id: new_id,
+                class: seg.class,
+                area: pixels.len() as u32,
+                bbox,
+                centre: [(sx / n_px) as f32, (sy / n_px) as f32],
+                score: seg.score,
+            });
+        }
+    }
+    if new_segments.is_empty() {
+        return;
+    }
+    pan.segments.extend(new_segments);
+    pan.refresh_extents();
+}
+
+/// For each piece, the share of the pixels on the shortest 8-connected route
+/// from the largest piece to it that belong to another leaf instance (0 for
+/// the largest piece itself and for pieces no route reaches).
+fn bridge_leaf_shares(
+    pan: &Panoptic,
+    piece: &[u32],
+    pieces: &[(u32, Vec<usize>)],
+    largest: usize,
+    id: u32,
+) -> Vec<f32> {
+    let (w, h) = (pan.width, pan.height);
+    let mut parent = vec![usize::MAX; w * h];
+    let mut queue = VecDeque::new();
+    for &k in &pieces[largest].1 {
+        parent[k] = k;
+        queue.push_back(k);
+    }
+    let target_label = |k: usize| -> Option<usize> {
+        (pan.instance[k] == id)
+            .then(|| piece[k] as usize)
+            .filter(|&l| l > 0)
+            .map(|l| l - 1)
+    };
+    let mut reached = vec![usize::MAX; pieces.len()];
+    let mut left = pieces.len() - 1;
+    'search: while let Some(j) = queue.pop_front() {
+        let (jx, jy) = (j % w, j / w);
+        for ny in jy.saturating_sub(1)..(jy + 2).min(h) {
+            for nx in jx.saturating_sub(1)..(jx + 2).min(w) {
+                let k = ny * w + nx;
+                if parent[k] != usize::MAX {
+                    continue;
+                }
+                parent[k] = j;
+                if let Some(n) = target_label(k) {
+                    if n != largest && reached[n] == usize::MAX {
+                        reached[n] = k;
+                        left -= 1;
+                        if left == 0 {
+                            break 'search;
+                        }
+                    }
+                    // Routes do not pass through other pieces of the instance.
+                    continue;
+                }
+                queue.push_back(k);
+            }
+        }
+    }
+    reached
+        .iter()
+        .map(|&end| {
+            if end == usize::MAX {
+                return 0.0;
+            }
+            let (mut leaf, mut total) = (0u32, 0u32);
+            let mut k = parent[end];
+            while parent[k] != k {
+                total += 1;
+                let other = pan.instance[k];
+                if other != 0 && other != id && pan.semantic[k] == phyllo_contract::LEAF {
+                    leaf += 1;
+                }
+                k = parent[k];
+            }
+            if total == 0 {
+                0.0
+            } else {
+                leaf as f32 / total as f32
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn leaf(id: u32, area: u32, bbox: [u32; 4]) -> Segment {
+        Segment {
+            id,
+            class: 1,
+            area,
+            bbox,
+            centre: [0.0, 0.0],
+            score: 0.9,
+        }
+    }
+
+    /// A 12x4 map with instance 1 in two blocks of 4x4 at x 0..4 and 8..12
+    /// and instance 2 between them, touching neither.
+    fn two_blocks() -> Panoptic {
+        let (w, h) = (12, 4);
+        let mut instance = vec![0u32; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                instance[y * w + x] = match x {
+                    0..=3 | 8..=11 => 1,
+                    5..=6 => 2,
+                    _ => 0,
+                };
+            }
+        }
+        Panoptic {
+            height: h,
+            width: w,
+            semantic: instance.iter().map(|&i| u8::from(i > 0)).collect(),
+            instance,
+            segments: vec![leaf(1, 32, [0, 0, 12, 4]), leaf(2, 8, [5, 0, 7, 4])],
+            tips: None,
+        }
+    }
+
+    #[test]
+    fn a_leaf_in_two_large_pieces_becomes_two_leaves() {
+        let c = Contract::embedded();
+        let mut p = two_blocks();
+        split_pieces(&mut p, c, 16, 1, 1.0);
+        assert_eq!(p.count(1), 3);
+        let new = &p.segments[2];
+        assert_eq!((new.id, new.area, new.bbox), (3, 16, [8, 0, 12, 4]));
+        assert_eq!(new.centre, [9.5, 1.5]);
+        assert_eq!(p.segments[0].area, 16, "the first piece keeps the old id");
+        assert_eq!(p.segments[0].bbox, [0, 0, 4, 4]);
+        assert!(p.instance[8..12].iter().all(|&i| i == 3));
+    }
+
+    #[test]
+    fn small_pieces_and_bridged_gaps_stay_with_their_leaf() {
+        let c = Contract::embedded();
+        let mut p = two_blocks();
+        split_pieces(&mut p, c, 17, 1, 1.0);
+        assert_eq!(p.count(1), 2, "a piece under the minimum area stays");
+        let mut p = two_blocks();
+        split_pieces(&mut p, c, 16, 5, 1.0);
+        assert_eq!(p.count(1), 2, "a gap of 4 empty pixels is bridged at gap 5");
+        let mut p = two_blocks();
+        split_pieces(&mut p, c, 0, 1, 1.0);
+        assert_eq!(p.count(1), 2, "0 is off");
+    }
+
+    #[test]
+    fn a_piece_reached_across_another_leaf_stays_and_one_across_the_stem_splits() {
+        let c = Contract::embedded();
+        // The route from one block to the other is 4 pixels, 2 of them on leaf 2.
+        let mut p = two_blocks();
+        split_pieces(&mut p, c, 16, 1, 0.4);
+        assert_eq!(p.count(1), 2, "half the route on another leaf: occlusion");
+        let mut p = two_blocks();
+        split_pieces(&mut p, c, 16, 1, 0.6);
+        assert_eq!(p.count(1), 3);
+        // The same layout with stem where leaf 2 was.
+        let mut p = two_blocks();
+        for (i, v) in p.instance.iter_mut().enumerate() {
+            if *v == 2 {
+                *v = 0;
+                p.semantic[i] = phyllo_contract::STEM;
+            }
+        }
+        p.segments.truncate(1);
+        split_pieces(&mut p, c, 16, 1, 0.0);
+        assert_eq!(p.count(1), 2, "two leaves either side of the stem");
+    }
+}
