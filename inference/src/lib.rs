@@ -3,7 +3,7 @@
 //! Data flows one way through these stages, each in its own module:
 //!
 //! ```text
-//! decode ─► region ─► tiling ─► model (ONNX Runtime) ─► stitch ─► postprocess ─► attachment ─► CountResult
+//! decode ─► region ─► tiling ─► model (ONNX Runtime) ─► stitch ─► postprocess ─► attachment ─► pieces ─► CountResult
 //! ```
 //!
 //! With a model that has a leaf-tip output, [`tips`] counts leaves by their

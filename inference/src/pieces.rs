@@ -15,6 +15,19 @@ use phyllo_contract::Contract;
 
 use crate::postprocess::{Panoptic, Segment};
 
+/// Default smallest piece that becomes a leaf, in output pixels: about a
+/// young leaf's blade at the contract scale. Chosen on the synthetic
+/// calibration sets (models/EXPERIMENTS.md, "Leaves in separate pieces").
+pub const DEFAULT_SPLIT_MIN_AREA: u32 = 128;
+
+/// Default gap within one piece, in output pixels: a leaf edge-on for a
+/// pixel or two is still one piece.
+pub const DEFAULT_SPLIT_GAP: u32 = 2;
+
+/// Default largest share of another leaf on the route between two pieces
+/// for them to be two leaves.
+pub const DEFAULT_SPLIT_MAX_LEAF_SHARE: f32 = 0.2;
+
 /// Gives each large separate piece of a leaf instance its own instance.
 /// `min_area` 0 disables the stage; `gap` 0 is taken as 1 (8-connected).
 pub fn split_pieces(pan: &mut Panoptic, contract: &Contract, min_area: u32, gap: u32, max_leaf_share: f32) {

@@ -17,6 +17,7 @@ use ndarray::{Array2, Array3};
 use phyllo_contract::{Contract, PostprocessDefaults, NUM_CLASSES};
 use serde::{Deserialize, Serialize};
 
+use crate::pieces::{DEFAULT_SPLIT_GAP, DEFAULT_SPLIT_MAX_LEAF_SHARE, DEFAULT_SPLIT_MIN_AREA};
 use crate::tips::{CountRule, TipPeak, DEFAULT_TIP_REACH};
 
 /// The three heads of a Panoptic-DeepLab model for one image (or one stitched canvas).
@@ -103,9 +104,9 @@ impl From<&PostprocessDefaults> for PostprocessParams {
             tip_nms_kernel: d.tip_nms_kernel,
             tip_reach: DEFAULT_TIP_REACH,
             count_rule: CountRule::default(),
-            split_min_area: 0,
-            split_gap: 1,
-            split_max_leaf_share: 1.0,
+            split_min_area: DEFAULT_SPLIT_MIN_AREA,
+            split_gap: DEFAULT_SPLIT_GAP,
+            split_max_leaf_share: DEFAULT_SPLIT_MAX_LEAF_SHARE,
         }
     }
 }

@@ -243,6 +243,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             "model": counter.model_id(),
             "tip_output": counter.model_info().has_tips,
             "count_rule": counter.count_rule(),
+            "postprocess": counter.config().postprocess,
             "source": title,
             "fingerprint": fingerprint.hex(),
             "metrics": metrics,
@@ -287,6 +288,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 format!(", not {asked}: no tip output")
             }
         );
+        println!("post     {}", describe_postprocess(&counter.config().postprocess));
         println!("source   {title}");
         print_data_line(&fingerprint);
         if args.per_image {
@@ -406,4 +408,20 @@ fn print_row(m: &CountMetrics) {
         m.bias,
         m.r2
     );
+}
+
+/// One line naming the post-processing settings a run counted with.
+fn describe_postprocess(p: &phyllo_inference::postprocess::PostprocessParams) -> String {
+    let pieces = if p.split_min_area == 0 {
+        "off".to_string()
+    } else {
+        format!(
+            "from {} px (gap {}, at most {} of the route on another leaf)",
+            p.split_min_area, p.split_gap, p.split_max_leaf_share
+        )
+    };
+    format!(
+        "centre threshold {}, NMS {}, min leaf area {}, attach radius {}, separate pieces as leaves {pieces} (output pixels)",
+        p.center_threshold, p.nms_kernel, p.min_leaf_area, p.attach_radius
+    )
 }
