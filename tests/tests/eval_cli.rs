@@ -388,3 +388,57 @@ fn script_rows_from_json_match_the_text_table() {
     let script_row = String::from_utf8(out.stdout).unwrap();
     assert_eq!(script_row.trim(), format!("| LABEL {}", table_row.trim()));
 }
+
+/// The separate-pieces stage (on by default) only ever adds leaves, and every
+/// evaluation records whether it ran, in its JSON and on its text `post` line.
+#[test]
+fn separate_pieces_stage_only_adds_leaves_and_is_recorded() {
+    let dev = dev_data().expect("development data beside the repo");
+    let eval = |extra: &[&str]| {
+        let (out, stdout, stderr) = run(phyllo()
+            .args(["eval", "--per-image", "--threads", "2", "--counts"])
+            .arg(dev.join("crops_counts.csv"))
+            .arg("--images")
+            .arg(dev.join("crops"))
+            .args(extra));
+        assert!(out.status.success(), "{stderr}");
+        stdout
+    };
+    let on: Value = serde_json::from_str(eval(&["--json"]).trim()).unwrap();
+    let off = eval(&["--split-min-area", "0"]);
+    assert_eq!(on["postprocess"]["split_min_area"], 128, "{}", on["postprocess"]);
+    assert!(
+        off.lines()
+            .any(|l| l.starts_with("post ") && l.contains("separate pieces as leaves off")),
+        "{off}"
+    );
+    let with: Vec<(String, u64)> = on["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| {
+            (
+                i["file"].as_str().unwrap().to_string(),
+                i["predicted"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    // Per-image text lines: file, view, `true N`, `predicted M`.
+    let without: Vec<(String, u64)> = off
+        .lines()
+        .filter_map(|l| {
+            let cells: Vec<&str> = l.split('\t').collect();
+            let predicted = cells.get(3)?.strip_prefix("predicted ")?.parse().ok()?;
+            Some((cells[0].to_string(), predicted))
+        })
+        .collect();
+    assert_eq!((with.len(), without.len()), (60, 60));
+    let mut changed = 0;
+    for ((file, a), (file_off, b)) in with.iter().zip(&without) {
+        assert_eq!(file, file_off);
+        assert!(a >= b, "{file}: {b} leaves without the stage, {a} with it");
+        changed += usize::from(a > b);
+    }
+    // Some real crops show a leaf instance in separate pieces.
+    assert!(changed > 0);
+}
