@@ -273,7 +273,6 @@ impl Counter {
         );
         split_pieces(
             &mut pan,
-            c,
             self.config.postprocess.split_min_area,
             self.config.postprocess.split_gap,
             self.config.postprocess.split_max_leaf_share,

@@ -8,10 +8,16 @@
 //! apart (Chebyshev), and gives every piece beyond the largest that holds at
 //! least `min_area` pixels an instance of its own. Smaller pieces stay with
 //! their instance: a leaf crossed by a thin neighbour leaves such crumbs.
+//!
+//! One leaf seen on both sides of a leaf in front of it also lies in two
+//! pieces, and grouping those is what the decoder's offsets are for. So a
+//! piece stays with its instance when the shortest route to the largest
+//! piece runs mostly over another leaf instance; across stem or background
+//! it becomes a leaf.
 
 use std::collections::VecDeque;
 
-use phyllo_contract::Contract;
+use phyllo_contract::LEAF;
 
 use crate::postprocess::{Panoptic, Segment};
 
@@ -30,61 +36,33 @@ pub const DEFAULT_SPLIT_MAX_LEAF_SHARE: f32 = 0.2;
 
 /// Gives each large separate piece of a leaf instance its own instance.
 /// `min_area` 0 disables the stage; `gap` 0 is taken as 1 (8-connected).
-pub fn split_pieces(pan: &mut Panoptic, contract: &Contract, min_area: u32, gap: u32, max_leaf_share: f32) {
+pub fn split_pieces(pan: &mut Panoptic, min_area: u32, gap: u32, max_leaf_share: f32) {
     if min_area == 0 || pan.segments.is_empty() {
         return;
     }
-    let (w, h) = (pan.width, pan.height);
-    let g = gap.max(1) as usize;
-    let mut piece = vec![0u32; w * h];
-    let mut queue = VecDeque::new();
+    let w = pan.width;
+    // Piece number + 1 of every pixel labelled so far (0: none); each pixel
+    // belongs to one instance, so one map serves them all.
+    let mut piece = vec![0u32; w * pan.height];
     let mut new_segments: Vec<Segment> = Vec::new();
     let mut next_id = pan.segments.len() as u32 + 1;
     for seg in pan.segments.clone() {
-        if !contract.is_thing(seg.class) || seg.area < 2 * min_area {
+        if seg.class != LEAF || seg.area < 2 * min_area {
             continue;
         }
         let id = seg.id;
-        let [bx0, by0, bx1, by1] = seg.bbox.map(|v| v as usize);
-        // Label the pieces inside the instance's box.
-        let mut pieces: Vec<(u32, Vec<usize>)> = Vec::new();
-        for y in by0..by1 {
-            for x in bx0..bx1 {
-                let i = y * w + x;
-                if pan.instance[i] != id || piece[i] != 0 {
-                    continue;
-                }
-                let label = pieces.len() as u32 + 1;
-                let mut pixels = vec![i];
-                piece[i] = label;
-                queue.push_back(i);
-                while let Some(j) = queue.pop_front() {
-                    let (jx, jy) = (j % w, j / w);
-                    for ny in jy.saturating_sub(g)..(jy + g + 1).min(by1) {
-                        for nx in jx.saturating_sub(g)..(jx + g + 1).min(bx1) {
-                            let k = ny * w + nx;
-                            if pan.instance[k] == id && piece[k] == 0 {
-                                piece[k] = label;
-                                pixels.push(k);
-                                queue.push_back(k);
-                            }
-                        }
-                    }
-                }
-                pieces.push((label, pixels));
-            }
-        }
+        let pieces = label_pieces(pan, &seg, gap.max(1) as usize, &mut piece);
         if pieces.len() < 2 {
             continue;
         }
         let largest = pieces
             .iter()
             .enumerate()
-            .max_by_key(|(n, (_, px))| (px.len(), std::cmp::Reverse(*n)))
+            .max_by_key(|(n, px)| (px.len(), std::cmp::Reverse(*n)))
             .map(|(n, _)| n)
             .expect("two or more pieces");
         let bridges = bridge_leaf_shares(pan, &piece, &pieces, largest, id);
-        for (n, (_, pixels)) in pieces.iter().enumerate() {
+        for (n, pixels) in pieces.iter().enumerate() {
             if n == largest || (pixels.len() as u32) < min_area {
                 continue;
             }
@@ -127,20 +105,58 @@ pub fn split_pieces(pan: &mut Panoptic, contract: &Contract, min_area: u32, gap:
     pan.refresh_extents();
 }
 
+/// The pieces of `seg`'s instance: its pixels grouped so that pixels up to
+/// `gap` apart (Chebyshev) share a piece, in raster order of their first
+/// pixel. Marks each pixel's piece number + 1 in `piece`.
+fn label_pieces(pan: &Panoptic, seg: &Segment, gap: usize, piece: &mut [u32]) -> Vec<Vec<usize>> {
+    let w = pan.width;
+    let id = seg.id;
+    let [bx0, by0, bx1, by1] = seg.bbox.map(|v| v as usize);
+    let mut pieces: Vec<Vec<usize>> = Vec::new();
+    let mut queue = VecDeque::new();
+    for y in by0..by1 {
+        for x in bx0..bx1 {
+            let i = y * w + x;
+            if pan.instance[i] != id || piece[i] != 0 {
+                continue;
+            }
+            let label = pieces.len() as u32 + 1;
+            let mut pixels = vec![i];
+            piece[i] = label;
+            queue.push_back(i);
+            while let Some(j) = queue.pop_front() {
+                let (jx, jy) = (j % w, j / w);
+                for ny in jy.saturating_sub(gap)..(jy + gap + 1).min(by1) {
+                    for nx in jx.saturating_sub(gap)..(jx + gap + 1).min(bx1) {
+                        let k = ny * w + nx;
+                        if pan.instance[k] == id && piece[k] == 0 {
+                            piece[k] = label;
+                            pixels.push(k);
+                            queue.push_back(k);
+                        }
+                    }
+                }
+            }
+            pieces.push(pixels);
+        }
+    }
+    pieces
+}
+
 /// For each piece, the share of the pixels on the shortest 8-connected route
 /// from the largest piece to it that belong to another leaf instance (0 for
 /// the largest piece itself and for pieces no route reaches).
 fn bridge_leaf_shares(
     pan: &Panoptic,
     piece: &[u32],
-    pieces: &[(u32, Vec<usize>)],
+    pieces: &[Vec<usize>],
     largest: usize,
     id: u32,
 ) -> Vec<f32> {
     let (w, h) = (pan.width, pan.height);
     let mut parent = vec![usize::MAX; w * h];
     let mut queue = VecDeque::new();
-    for &k in &pieces[largest].1 {
+    for &k in &pieces[largest] {
         parent[k] = k;
         queue.push_back(k);
     }
@@ -187,7 +203,7 @@ fn bridge_leaf_shares(
             while parent[k] != k {
                 total += 1;
                 let other = pan.instance[k];
-                if other != 0 && other != id && pan.semantic[k] == phyllo_contract::LEAF {
+                if other != 0 && other != id && pan.semantic[k] == LEAF {
                     leaf += 1;
                 }
                 k = parent[k];
@@ -242,9 +258,8 @@ mod tests {
 
     #[test]
     fn a_leaf_in_two_large_pieces_becomes_two_leaves() {
-        let c = Contract::embedded();
         let mut p = two_blocks();
-        split_pieces(&mut p, c, 16, 1, 1.0);
+        split_pieces(&mut p, 16, 1, 1.0);
         assert_eq!(p.count(1), 3);
         let new = &p.segments[2];
         assert_eq!((new.id, new.area, new.bbox), (3, 16, [8, 0, 12, 4]));
@@ -256,27 +271,25 @@ mod tests {
 
     #[test]
     fn small_pieces_and_bridged_gaps_stay_with_their_leaf() {
-        let c = Contract::embedded();
         let mut p = two_blocks();
-        split_pieces(&mut p, c, 17, 1, 1.0);
+        split_pieces(&mut p, 17, 1, 1.0);
         assert_eq!(p.count(1), 2, "a piece under the minimum area stays");
         let mut p = two_blocks();
-        split_pieces(&mut p, c, 16, 5, 1.0);
+        split_pieces(&mut p, 16, 5, 1.0);
         assert_eq!(p.count(1), 2, "a gap of 4 empty pixels is bridged at gap 5");
         let mut p = two_blocks();
-        split_pieces(&mut p, c, 0, 1, 1.0);
+        split_pieces(&mut p, 0, 1, 1.0);
         assert_eq!(p.count(1), 2, "0 is off");
     }
 
     #[test]
     fn a_piece_reached_across_another_leaf_stays_and_one_across_the_stem_splits() {
-        let c = Contract::embedded();
         // The route from one block to the other is 4 pixels, 2 of them on leaf 2.
         let mut p = two_blocks();
-        split_pieces(&mut p, c, 16, 1, 0.4);
+        split_pieces(&mut p, 16, 1, 0.4);
         assert_eq!(p.count(1), 2, "half the route on another leaf: occlusion");
         let mut p = two_blocks();
-        split_pieces(&mut p, c, 16, 1, 0.6);
+        split_pieces(&mut p, 16, 1, 0.6);
         assert_eq!(p.count(1), 3);
         // The same layout with stem where leaf 2 was.
         let mut p = two_blocks();
@@ -287,7 +300,7 @@ mod tests {
             }
         }
         p.segments.truncate(1);
-        split_pieces(&mut p, c, 16, 1, 0.0);
+        split_pieces(&mut p, 16, 1, 0.0);
         assert_eq!(p.count(1), 2, "two leaves either side of the stem");
     }
 }
