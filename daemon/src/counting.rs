@@ -55,6 +55,7 @@ impl LeafCounter for phyllo_inference::Counter {
                 }),
                 ms_total: r.ms.total,
                 model_id: self.model_id(),
+                settings: counting_settings(self.config()),
             }),
             Err(e) => {
                 // Bad image data will fail the same way every time; runtime trouble may pass.
@@ -70,4 +71,20 @@ impl LeafCounter for phyllo_inference::Counter {
     fn model_id(&self) -> String {
         phyllo_inference::Counter::model_id(self)
     }
+}
+
+/// What a count depends on besides the model and the image, as stored with
+/// each observation.
+fn counting_settings(config: &phyllo_inference::CounterConfig) -> serde_json::Value {
+    // The contract's values where the configuration leaves them open, so a
+    // later contract change shows too.
+    let zoom = phyllo_inference::zoom::Zoom::from_contract(phyllo_contract::Contract::embedded());
+    serde_json::json!({
+        "zoom_plant_height": config.zoom_plant_height.unwrap_or(zoom.plant_height),
+        "max_zoom": config.max_zoom.unwrap_or(zoom.max),
+        "flip": config.flip,
+        "region": config.region,
+        "scale": config.scale,
+        "postprocess": config.postprocess,
+    })
 }

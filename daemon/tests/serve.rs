@@ -33,6 +33,7 @@ impl LeafCounter for TextCounter {
                 timing: serde_json::json!({"total": 1.0}),
                 ms_total: 1.0,
                 model_id: "text-counter".into(),
+                settings: serde_json::Value::Null,
             }),
             None => Err(CountError {
                 message: format!("image {}: not a complete image", name.display()),

@@ -304,6 +304,11 @@ fn daemon_counts_a_generated_sequence() {
     assert!(images
         .iter()
         .all(|r| r["state"] == "counted" && r["version"] == "1"));
+    // Each count names the settings it was made with.
+    for r in &images {
+        let settings: serde_json::Value = serde_json::from_str(&r["settings"]).unwrap();
+        assert_eq!(settings["postprocess"]["split_min_area"], 128, "{r:?}");
+    }
     let sessions = read_csv(&exports.join("sessions.csv"));
     assert_eq!(
         sessions.len() as u32,

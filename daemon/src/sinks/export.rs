@@ -18,7 +18,7 @@ fn query(kind: &str) -> anyhow::Result<&'static str> {
         "images" => {
             "SELECT i.path, i.version, i.state, p.name AS plant, i.taken_at, i.view, o.leaf_count,
                     o.model_id, o.ms_total, i.size, i.sha256, d.path AS duplicate_of, i.superseded,
-                    i.attempts, i.error, i.first_seen, i.updated_at
+                    i.attempts, i.error, i.first_seen, i.updated_at, o.settings
              FROM images i
              LEFT JOIN plants p ON p.id = i.plant_id
              LEFT JOIN observations o ON o.image_id = i.id

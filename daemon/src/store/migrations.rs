@@ -109,6 +109,12 @@ CREATE TABLE service (
     value TEXT NOT NULL
 ) WITHOUT ROWID;
 "#,
+    // 2: the settings each count was made with. A pipeline change (a new
+    // post-processing stage, say) moves counts under the same model, and a
+    // timeline must be able to tell. NULL for imports and older rows.
+    r#"
+ALTER TABLE observations ADD COLUMN settings TEXT;  -- JSON: zoom and post-processing
+"#,
 ];
 
 /// Brings the database to the newest schema version.

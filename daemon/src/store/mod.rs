@@ -72,6 +72,9 @@ pub struct CountRecord {
     pub ms_total: f64,
     /// Identifies the model that counted.
     pub model_id: String,
+    /// The counting settings (zoom, post-processing) as JSON; `Null` when
+    /// the counter has none to report.
+    pub settings: serde_json::Value,
 }
 
 /// What happened to one image.
@@ -273,7 +276,8 @@ impl Store {
                 refresh(&tx, &self.params, &self.fusion_name, &stale, Some(plant_id))?;
                 tx.execute(
                     "INSERT INTO observations (image_id, plant_id, taken_at, view, leaf_count, instances, model_id,
-                         timing, ms_total, created_at) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+                         timing, ms_total, created_at, settings)
+                         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
                     params![
                         image_id,
                         plant_id,
@@ -284,7 +288,8 @@ impl Store {
                         count.model_id,
                         count.timing.to_string(),
                         count.ms_total,
-                        now
+                        now,
+                        (!count.settings.is_null()).then(|| count.settings.to_string())
                     ],
                 )?;
                 let diff = recompute(&tx, &self.params, &self.fusion_name, plant_id, &name.plant, &now)?;

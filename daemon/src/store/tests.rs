@@ -49,6 +49,7 @@ fn count(n: u32) -> CountRecord {
         timing: serde_json::json!({"total": 12.5}),
         ms_total: 12.5,
         model_id: "test-model".into(),
+        settings: serde_json::json!({"postprocess": {"split_min_area": 128}}),
     }
 }
 
@@ -379,4 +380,40 @@ fn recompute_all_applies_a_new_fusion_rule() {
     let mut s = Store::open(&db(&dir), &tl, 3).unwrap();
     assert_eq!(s.recompute_all().unwrap(), 1);
     assert_eq!(s.plant_timeline("P1").unwrap().unwrap().sessions[0].fused, 7.0);
+}
+
+#[test]
+fn counts_keep_their_settings_and_older_databases_gain_the_column() {
+    // A site's database from before schema 2: one observation already in it.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir_all(db(&dir).parent().unwrap()).unwrap();
+    let conn = Connection::open(db(&dir)).unwrap();
+    conn.execute_batch(migrations::MIGRATIONS[0]).unwrap();
+    conn.pragma_update(None, "user_version", 1).unwrap();
+    conn.execute_batch(
+        "INSERT INTO plants (id, name, first_seen) VALUES (1, 'P0', '2026-01-01T00:00:00');
+         INSERT INTO observations (plant_id, taken_at, view, leaf_count, model_id, created_at)
+         VALUES (1, '2026-01-01T00:00:00', 'SV_0', 5, 'old-model', '2026-01-01T00:00:00');",
+    )
+    .unwrap();
+    drop(conn);
+    let mut s = open(&dir);
+    let f = facts("P1_a.png", "a");
+    s.record(
+        &f,
+        Outcome::Counted(&name("P1", day(0), View::Side(0)), &count(8)),
+    )
+    .unwrap();
+    let settings: Vec<Option<String>> = s
+        .conn()
+        .prepare("SELECT settings FROM observations ORDER BY id")
+        .unwrap()
+        .query_map([], |r| r.get(0))
+        .unwrap()
+        .collect::<Result<_, _>>()
+        .unwrap();
+    assert_eq!(settings.len(), 2);
+    assert_eq!(settings[0], None, "the older count has no settings");
+    let v: serde_json::Value = serde_json::from_str(settings[1].as_deref().unwrap()).unwrap();
+    assert_eq!(v["postprocess"]["split_min_area"], 128);
 }
