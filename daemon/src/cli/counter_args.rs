@@ -83,7 +83,12 @@ pub struct CounterArgs {
     /// Post-processing: a piece stays with its instance when more than this
     /// share of the shortest route to the instance's largest piece runs over
     /// another leaf (1: split every large piece).
-    #[arg(long, value_name = "SHARE", default_value_t = PostprocessParams::default().split_max_leaf_share)]
+    #[arg(
+        long,
+        value_name = "SHARE",
+        default_value_t = PostprocessParams::default().split_max_leaf_share,
+        value_parser = parse_share,
+    )]
     pub split_max_leaf_share: f32,
 }
 
@@ -145,6 +150,15 @@ fn parse_nms_kernel(s: &str) -> Result<u32, String> {
     Ok(v)
 }
 
+/// Parses a share: a number within 0..=1.
+fn parse_share(s: &str) -> Result<f32, String> {
+    let v: f32 = s.parse().map_err(|_| format!("{s:?} is not a number"))?;
+    if !(0.0..=1.0).contains(&v) {
+        return Err(format!("{v} must lie in 0..=1"));
+    }
+    Ok(v)
+}
+
 /// Parses a `--scale` factor: finite and within 0.01..=8.
 fn parse_scale(s: &str) -> Result<f32, String> {
     let v: f32 = s.parse().map_err(|_| format!("{s:?} is not a number"))?;
@@ -194,6 +208,26 @@ mod tests {
         let cli = Cli::try_parse_from(std::iter::once("phyllo").chain(args.iter().copied()))
             .map_err(|e| e.to_string())?;
         cli.counter.config().map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn separate_pieces_options_reach_the_post_processing() {
+        let p = config(&[
+            "--split-min-area",
+            "64",
+            "--split-gap",
+            "3",
+            "--split-max-leaf-share",
+            "0.5",
+        ])
+        .unwrap()
+        .postprocess;
+        assert_eq!(
+            (p.split_min_area, p.split_gap, p.split_max_leaf_share),
+            (64, 3, 0.5)
+        );
+        assert!(config(&["--split-max-leaf-share", "1.5"]).is_err());
+        assert!(config(&["--split-max-leaf-share", "-0.1"]).is_err());
     }
 
     #[test]
