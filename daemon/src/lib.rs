@@ -20,6 +20,7 @@ pub mod config;
 pub mod counting;
 pub mod evaluation;
 pub mod names;
+pub mod recount;
 pub mod service;
 pub mod sinks;
 pub mod source;

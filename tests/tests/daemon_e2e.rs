@@ -309,6 +309,23 @@ fn daemon_counts_a_generated_sequence() {
         let settings: serde_json::Value = serde_json::from_str(&r["settings"]).unwrap();
         assert_eq!(settings["postprocess"]["split_min_area"], 128, "{r:?}");
     }
+    // With the daemon stopped, `phyllo recount` reads every frame again and,
+    // with the same model and settings, reproduces every count.
+    let out = Command::new(&phyllo)
+        .args(["recount", "-c"])
+        .arg(&cfg)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains(&format!("recounted {n} images with ")) && stdout.contains(": 0 counts changed"),
+        "{stdout}"
+    );
     let sessions = read_csv(&exports.join("sessions.csv"));
     assert_eq!(
         sessions.len() as u32,

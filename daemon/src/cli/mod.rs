@@ -6,6 +6,7 @@ pub mod counter_args;
 pub mod eval;
 pub mod export;
 pub mod import;
+pub mod recount;
 pub mod serve;
 pub mod status;
 pub mod tail;
@@ -35,6 +36,8 @@ pub enum Command {
     Serve(serve::Args),
     /// Ingest leaf counts made elsewhere (CSV: plant,timestamp,view,leaf_count).
     Import(import::Args),
+    /// Count the stored images again with the configured model and settings (after an upgrade).
+    Recount(recount::Args),
     /// Follow new counts and emergence events as they land, until interrupted.
     Tail(tail::Args),
     /// Write CSV (images, sessions, timeline or events), atomically.
@@ -72,6 +75,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Serve(a) => ok(serve::run(a)),
         Command::Import(a) => ok(import::run(a)),
+        Command::Recount(a) => recount::run(a),
         Command::Tail(a) => ok(tail::run(a)),
         Command::Export(a) => ok(export::run(a)),
         Command::Timeline(a) => ok(timeline::run(a)),

@@ -17,6 +17,9 @@
 
 pub mod migrations;
 mod queries;
+mod recount;
+
+pub use recount::CountedImage;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
