@@ -40,7 +40,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         },
     )?;
     println!(
-        "recounted {} images with {}: {} counts changed (net {:+} leaves){}; {} missing, {} changed on disk since counted (left to the daemon), {} failed; {} plants refitted",
+        "recounted {} images with {}: {} counts changed (net {:+} leaves){}; {} missing, {} changed on disk since counted (left to the daemon), {} failed; {} plant timelines refitted",
         s.recounted,
         counter.model_id(),
         s.changed,
