@@ -23,6 +23,11 @@ pub trait LeafCounter: Send + Sync {
     fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError>;
     /// Identifies the model, stored with every observation.
     fn model_id(&self) -> String;
+    /// The settings its counts are made with (JSON, as stored with each
+    /// observation); `Null` for a counter that has none to report.
+    fn settings(&self) -> serde_json::Value {
+        serde_json::Value::Null
+    }
 }
 
 /// Builds the production counter (ONNX Runtime) from `[inference]`.
@@ -55,7 +60,7 @@ impl LeafCounter for phyllo_inference::Counter {
                 }),
                 ms_total: r.ms.total,
                 model_id: self.model_id(),
-                settings: counting_settings(self.config()),
+                settings: LeafCounter::settings(self),
             }),
             Err(e) => {
                 // Bad image data will fail the same way every time; runtime trouble may pass.
@@ -70,6 +75,10 @@ impl LeafCounter for phyllo_inference::Counter {
 
     fn model_id(&self) -> String {
         phyllo_inference::Counter::model_id(self)
+    }
+
+    fn settings(&self) -> serde_json::Value {
+        counting_settings(self.config())
     }
 }
 

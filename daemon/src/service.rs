@@ -42,6 +42,7 @@ pub async fn run(
     let names = NamePatterns::from_config(&config.names)?;
     let mut status_store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
     let model_id = counter.model_id();
+    let settings = counter.settings();
     let stats = Arc::new(Stats::default());
     let in_flight = Arc::new(Mutex::new(HashSet::new()));
     let stop_workers = Arc::new(AtomicBool::new(false));
@@ -78,6 +79,7 @@ pub async fn run(
         ("pid", std::process::id().to_string()),
         ("started_at", started.clone()),
         ("model", model_id.clone()),
+        ("settings", settings.to_string()),
         ("drop_dir", config.drop_dir.display().to_string()),
         ("workers", config.inference.workers.to_string()),
     ])?;

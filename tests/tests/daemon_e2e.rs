@@ -276,6 +276,7 @@ fn daemon_counts_a_generated_sequence() {
         .unwrap();
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["state"], "stopped");
+    assert_eq!(v["counts_with_other_settings"], 0, "{v}");
     kill_term(&tail);
     tail.wait().unwrap();
     let lines = tail_reader.join().unwrap();

@@ -24,6 +24,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let counts = store.image_counts()?;
     let last = store.last_image()?;
     let failures = store.recent_failures(5)?;
+    // Counts made with other settings than the service's (an upgrade since):
+    // `phyllo recount` brings them in line.
+    let other_settings = match svc.get("settings") {
+        Some(s) => Some(store.counts_with_other_settings(s)?),
+        None => None,
+    };
     let get = |k: &str| svc.get(k).cloned().unwrap_or_else(|| "-".into());
     let heartbeat_age = svc
         .get("heartbeat")
@@ -43,6 +49,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "images": counts,
             "last_image": last,
             "recent_failures": failures,
+            "counts_with_other_settings": other_settings,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
@@ -64,6 +71,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "images:    {} counted, {} duplicates, {} failed; {} imported counts; {} plants",
         counts.counted, counts.duplicate, counts.failed, counts.imported, counts.plants
     );
+    match other_settings {
+        Some(0) => println!("settings:  every count made with the service's settings"),
+        Some(n) => println!(
+            "settings:  {n} counts made with other settings than the service's (an upgrade since?): `phyllo recount` counts them again"
+        ),
+        None => {}
+    }
     match last {
         Some(l) => println!("last:      {} ({}, {})", l.path, l.state, l.at),
         None => println!("last:      -"),

@@ -198,6 +198,17 @@ impl Store {
         Ok(rows)
     }
 
+    /// How many current image counts were made with settings other than
+    /// `settings` (JSON text as stored), those from before schema 2 included.
+    pub fn counts_with_other_settings(&self, settings: &str) -> anyhow::Result<i64> {
+        Ok(self.conn.query_row(
+            "SELECT COUNT(*) FROM observations o JOIN images i ON i.id = o.image_id
+             WHERE i.superseded = 0 AND (o.settings IS NULL OR o.settings != ?1)",
+            [settings],
+            |r| r.get(0),
+        )?)
+    }
+
     /// All plant ids, sorted.
     pub fn plants(&self) -> anyhow::Result<Vec<String>> {
         let mut stmt = self.conn.prepare("SELECT name FROM plants ORDER BY name")?;

@@ -416,4 +416,8 @@ fn counts_keep_their_settings_and_older_databases_gain_the_column() {
     assert_eq!(settings[0], None, "the older count has no settings");
     let v: serde_json::Value = serde_json::from_str(settings[1].as_deref().unwrap()).unwrap();
     assert_eq!(v["postprocess"]["split_min_area"], 128);
+    // `phyllo status` compares the image counts with the service's settings.
+    let current = settings[1].as_deref().unwrap();
+    assert_eq!(s.counts_with_other_settings(current).unwrap(), 0);
+    assert_eq!(s.counts_with_other_settings("{}").unwrap(), 1);
 }
