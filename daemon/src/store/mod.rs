@@ -80,6 +80,13 @@ pub struct CountRecord {
     pub settings: serde_json::Value,
 }
 
+impl CountRecord {
+    /// The settings as stored: JSON text, or NULL when there are none.
+    pub(crate) fn settings_text(&self) -> Option<String> {
+        (!self.settings.is_null()).then(|| self.settings.to_string())
+    }
+}
+
 /// What happened to one image.
 #[derive(Debug)]
 pub enum Outcome<'a> {
@@ -292,7 +299,7 @@ impl Store {
                         count.timing.to_string(),
                         count.ms_total,
                         now,
-                        (!count.settings.is_null()).then(|| count.settings.to_string())
+                        count.settings_text()
                     ],
                 )?;
                 let diff = recompute(&tx, &self.params, &self.fusion_name, plant_id, &name.plant, &now)?;

@@ -63,7 +63,7 @@ impl Store {
                 count.model_id,
                 count.timing.to_string(),
                 count.ms_total,
-                (!count.settings.is_null()).then(|| count.settings.to_string()),
+                count.settings_text(),
                 now_utc()
             ],
         )?;
