@@ -275,12 +275,15 @@ def with_tip_head(base: PhylloNet, width: int = 32, seed: int | None = None) -> 
 
 
 DEFAULT_DEC = (64, 48, 32, 24)
+DEFAULT_WIDTH = (16, 24, 32, 64, 128)
 
 
 def build_model(num_classes: int = 4, seed: int | None = 0, instance_stride: int = 4,
-                dec: tuple[int, ...] | None = None, ins_width: int | None = None) -> PhylloNet:
-    """Build the network (``instance_stride``, ``dec``, ``ins_width``: see :class:`PhylloNet`); with ``seed`` the initial weights are deterministic."""
-    kw = dict(instance_stride=instance_stride, dec=tuple(dec or DEFAULT_DEC), ins_width=ins_width)
+                dec: tuple[int, ...] | None = None, ins_width: int | None = None,
+                width: tuple[int, ...] | None = None) -> PhylloNet:
+    """Build the network (``instance_stride``, ``dec``, ``ins_width``, encoder ``width``: see :class:`PhylloNet`); with ``seed`` the initial weights are deterministic."""
+    kw = dict(instance_stride=instance_stride, dec=tuple(dec or DEFAULT_DEC), ins_width=ins_width,
+              width=tuple(width or DEFAULT_WIDTH))
     if seed is not None:
         g_state = torch.random.get_rng_state()
         torch.manual_seed(seed)
@@ -293,11 +296,14 @@ def build_model(num_classes: int = 4, seed: int | None = 0, instance_stride: int
 def architecture_kwargs(args: dict | None) -> dict:
     """``build_model`` keyword arguments from a checkpoint's saved training args (older ones lack the newer keys)."""
     args = args or {}
-    dec = args.get("dec")
+    dec, width = args.get("dec"), args.get("width")
     if isinstance(dec, str):
         dec = tuple(int(v) for v in dec.split(","))
+    if isinstance(width, str):
+        width = tuple(int(v) for v in width.split(","))
     return {"instance_stride": int(args.get("instance_stride", 4)),
             "dec": tuple(dec) if dec else None,
+            "width": tuple(width) if width else None,
             "ins_width": int(args["ins_width"]) if args.get("ins_width") else None}
 
 

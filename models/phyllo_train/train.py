@@ -72,12 +72,22 @@ def describe_data(dirs: list[Path]) -> str:
     return " | ".join(parts)
 
 
+def _counts(text: str, n: int) -> tuple[int, ...]:
+    """``n`` comma-separated positive channel counts."""
+    vals = tuple(int(v) for v in text.split(","))
+    if len(vals) != n or min(vals) < 1:
+        raise argparse.ArgumentTypeError(f"expected {n} positive channel counts, got {text!r}")
+    return vals
+
+
 def _widths(text: str) -> tuple[int, ...]:
     """``--dec`` parser: four comma-separated channel counts."""
-    vals = tuple(int(v) for v in text.split(","))
-    if len(vals) != 4 or min(vals) < 1:
-        raise argparse.ArgumentTypeError(f"expected four positive channel counts, got {text!r}")
-    return vals
+    return _counts(text, 4)
+
+
+def _encoder_widths(text: str) -> tuple[int, ...]:
+    """``--width`` parser: five comma-separated channel counts (strides 2 to 32)."""
+    return _counts(text, 5)
 
 
 def init_weights(model: torch.nn.Module, state: dict) -> list[str]:
@@ -101,6 +111,17 @@ def lr_at(step: int, total: int, base: float, warmup: int) -> float:
         return base * (step + 1) / warmup
     t = min(1.0, (step - warmup) / max(1, total - warmup))
     return base * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * t)))
+
+
+def schedule_step(step: int, total: int, elapsed_s: float, budget_s: float | None) -> int:
+    """The step the LR schedule is at: with a wall-clock budget, the further of steps and time.
+
+    A run on a lent machine has minutes, not a step count: its schedule then
+    decays over the time it has, and it ends when the time is spent.
+    """
+    if not budget_s:
+        return step
+    return max(step, min(total, int(total * elapsed_s / budget_s)))
 
 
 def epoch_batches(n: int, batch: int, seed: int, epoch: int) -> list[list[int]]:
@@ -194,6 +215,9 @@ def build_parser() -> argparse.ArgumentParser:
     g = ap.add_mutually_exclusive_group()
     g.add_argument("--steps", type=int, help="total optimiser steps")
     g.add_argument("--epochs", type=float, help="total epochs over the train split (default 10)")
+    ap.add_argument("--minutes", type=float, default=None,
+                    help="wall-clock budget: the LR schedule follows time or steps, whichever is further, "
+                         "and training ends when the budget is spent (checkpoints and validation as at the last step)")
     ap.add_argument("--crop", type=int, default=256, help="random crop side in input px; 0 = full tiles")
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--lr", type=float, default=2e-3)
@@ -218,6 +242,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--dec", type=_widths, default=None,
                     help="decoder channels at strides 16,8,4,2 (default 64,48,32,24); --init from a narrower "
                          "checkpoint grows it without changing its output (model.grow_state)")
+    ap.add_argument("--width", type=_encoder_widths, default=None,
+                    help="encoder channels at strides 2, 4, 8, 16, 32 (default 16,24,32,64,128); grows like --dec")
     ap.add_argument("--ins-width", type=int, default=None,
                     help="instance branch channels (default: the stride-4 decoder's); grows like --dec")
     ap.add_argument("--center-sigma", type=float, default=None,
@@ -308,7 +334,7 @@ def main(argv: list[str] | None = None) -> int:
     # channels_last: ~2.5x faster depthwise conv / BN training on CPU (oneDNN), also good on GPUs.
     mem = torch.channels_last
     model = build_model(contract.num_classes, seed=args.seed, instance_stride=args.instance_stride,
-                        dec=args.dec, ins_width=args.ins_width)
+                        dec=args.dec, ins_width=args.ins_width, width=args.width)
     if args.tips:
         model = with_tip_head(model, args.tip_width, seed=args.seed)
     model = model.to(device, memory_format=mem)
@@ -395,6 +421,7 @@ def main(argv: list[str] | None = None) -> int:
     run_avg: dict[str, float] = {}
     t_last, imgs_since = time.perf_counter(), 0
     t_start = time.perf_counter()
+    budget_s = args.minutes * 60 if args.minutes else None
     while step < total:
         epoch = step // per_epoch
         for ds in train_sets:
@@ -406,7 +433,8 @@ def main(argv: list[str] | None = None) -> int:
             if step >= total:
                 break
             for g in opt.param_groups:
-                g["lr"] = lr_at(step, total, args.lr, args.warmup)
+                g["lr"] = lr_at(schedule_step(step, total, time.perf_counter() - t_start, budget_s), total,
+                                args.lr, args.warmup)
             xs = xs.to(device, non_blocking=True).contiguous(memory_format=mem)
             ts = {k: v.to(device, non_blocking=True) for k, v in ts.items()}
             _, loss, parts = forward_losses(model, xs, ts, weights, args.tip_weight, args.bf16)
@@ -417,6 +445,8 @@ def main(argv: list[str] | None = None) -> int:
             if ema is not None:
                 ema.update(model)
             step += 1
+            if budget_s and time.perf_counter() - t_start >= budget_s:
+                total = step  # the time is spent: this step is the last
             imgs_since += len(xs)
             for k, v in parts.items():
                 run_avg[k] = v if k not in run_avg else 0.9 * run_avg[k] + 0.1 * v

@@ -17,9 +17,10 @@ def _with_stats(model, seed):
     return model.eval()
 
 
-def test_wider_decoder_and_instance_branch_start_as_the_narrow_network(contract):
+@pytest.mark.parametrize("width", [None, (24, 32, 48, 96, 160)])
+def test_wider_network_starts_as_the_narrow_network(contract, width):
     narrow = _with_stats(build_model(contract.num_classes, seed=0), 1)
-    wide = build_model(contract.num_classes, seed=7, dec=(80, 56, 40, 32), ins_width=64)
+    wide = build_model(contract.num_classes, seed=7, dec=(80, 56, 40, 32), ins_width=64, width=width)
     assert count_parameters(wide) > count_parameters(narrow) + 20_000
     assert init_weights(wide, narrow.state_dict()) == []
     x = torch.randn(2, 3, 64, 96)
@@ -48,6 +49,8 @@ def test_grow_refuses_a_narrower_target(contract):
 
 
 def test_architecture_comes_back_from_saved_args():
-    assert architecture_kwargs(None) == {"instance_stride": 4, "dec": None, "ins_width": None}
-    kw = architecture_kwargs({"instance_stride": 4, "dec": [80, 56, 40, 32], "ins_width": 64})
-    assert kw == {"instance_stride": 4, "dec": (80, 56, 40, 32), "ins_width": 64}
+    assert architecture_kwargs(None) == {"instance_stride": 4, "dec": None, "width": None, "ins_width": None}
+    kw = architecture_kwargs({"instance_stride": 4, "dec": [80, 56, 40, 32], "ins_width": 64,
+                              "width": [24, 32, 48, 96, 160]})
+    assert kw == {"instance_stride": 4, "dec": (80, 56, 40, 32), "width": (24, 32, 48, 96, 160), "ins_width": 64}
+    assert count_parameters(build_model(4, seed=0, **kw)) > count_parameters(build_model(4, seed=0)) + 200_000

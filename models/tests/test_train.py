@@ -115,3 +115,17 @@ def test_train_speed_prints_its_table(tiny_dataset, capsys):
     assert "| data pipeline, one process" in out
     assert "| optimiser step, float32 |" in out and "| 1.00 |" in out
     assert "| optimiser step, bfloat16 autocast |" in out
+
+
+def test_wall_clock_budget_drives_the_schedule_and_ends_the_run(tiny_dataset, tmp_path):
+    # The schedule follows whichever of steps and time is further along.
+    assert train.schedule_step(10, 1000, 30.0, None) == 10
+    assert train.schedule_step(10, 1000, 30.0, 60.0) == 500
+    assert train.schedule_step(900, 1000, 30.0, 60.0) == 900
+    assert train.schedule_step(10, 1000, 90.0, 60.0) == 1000
+    run = tmp_path / "timed"
+    args = ["--data", str(tiny_dataset), "--out", str(run), "--crop", "64", "--batch", "2", "--workers", "0",
+            "--val-limit", "0", "--log-every", "1", "--warmup", "1", "--steps", "100000", "--minutes", "0.001"]
+    assert train.main(args) == 0
+    ck = torch.load(run / "last.pt", map_location="cpu", weights_only=False)
+    assert 1 <= ck["step"] < 100000  # ended by the 60 ms budget, not the step count
