@@ -193,9 +193,24 @@ mod tests {
         assert_eq!(imgs[1].leaf_count, 5, "the missing image keeps its count");
         let first = &store.plant_timeline("P1").unwrap().unwrap().sessions[0];
         assert_eq!(first.fused, 6.0, "the timeline is refitted from the new count");
-        // Counting again with the same counter changes nothing.
+        // The change is in the feed `phyllo tail` follows, named by file.
+        let recounts = |store: &Store| {
+            store
+                .feed_after(0, None, 1000)
+                .unwrap()
+                .into_iter()
+                .filter(|r| r.kind == "recount")
+                .collect::<Vec<_>>()
+        };
+        let feed = recounts(&store);
+        assert_eq!(feed.len(), 1, "{feed:?}");
+        assert_eq!(feed[0].path.as_deref(), Some("a.png"));
+        assert_eq!(feed[0].leaf_count, Some(6));
+        assert_eq!(feed[0].message.as_deref(), Some("a.png: count 4 -> 6 (length+2)"));
+        // Counting again with the same counter changes nothing, and says nothing.
         let again = recount(&mut store, &new, dir.path(), None, false, |_, _| {}).unwrap();
         assert_eq!((again.recounted, again.changed), (1, 0));
+        assert_eq!(recounts(&store).len(), 1);
     }
 
     #[test]

@@ -51,6 +51,12 @@ pub fn format_row(r: &FeedRow) -> String {
             num(r.leaves_emerged)
         ),
         "failed" => format!("{}  FAILED  {}", r.at, r.message.as_deref().unwrap_or("")),
+        "recount" => format!(
+            "{}  {plant}  {}  RECOUNT  {}",
+            r.taken_at.as_deref().unwrap_or("-"),
+            r.view.as_deref().unwrap_or("-"),
+            r.message.as_deref().unwrap_or("")
+        ),
         _ => format!(
             "{}  {}  {}",
             r.at,
@@ -113,5 +119,28 @@ pub fn follow(
         if rows.is_empty() {
             std::thread::sleep(POLL);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_recount_reads_as_old_and_new_count_of_the_file() {
+        let row = FeedRow {
+            kind: "recount".into(),
+            plant: Some("P1".into()),
+            taken_at: Some("2026-05-01T10:00:00".into()),
+            view: Some("SV_36".into()),
+            leaf_count: Some(9),
+            path: Some("P1/a.png".into()),
+            message: Some("P1/a.png: count 8 -> 9 (phyllo-s10-cpu)".into()),
+            ..FeedRow::default()
+        };
+        assert_eq!(
+            format_row(&row),
+            "2026-05-01T10:00:00  P1  SV_36  RECOUNT  P1/a.png: count 8 -> 9 (phyllo-s10-cpu)"
+        );
     }
 }

@@ -15,7 +15,7 @@ pub struct FeedRow {
     pub seq: i64,
     /// When it was written (UTC).
     pub at: String,
-    /// `count`, `import`, `event`, `duplicate` or `failed`.
+    /// `count`, `import`, `event`, `duplicate`, `failed` or `recount`.
     pub kind: String,
     /// Plant id.
     pub plant: Option<String>,

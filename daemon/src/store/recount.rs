@@ -1,9 +1,11 @@
 //! What `phyllo recount` reads from and writes to the store: the images
-//! counted so far, and a count replaced in place.
+//! counted so far, and a count replaced in place (with a feed entry, so
+//! that `phyllo tail` shows what a recount changed).
 
-use rusqlite::params;
+use anyhow::Context;
+use rusqlite::{params, OptionalExtension, TransactionBehavior};
 
-use super::{now_utc, CountRecord, Store};
+use super::{now_utc, push_feed, CountRecord, FeedRow, Store};
 
 /// One counted image, as the store holds it.
 #[derive(Debug, Clone, PartialEq)]
@@ -49,10 +51,27 @@ impl Store {
         Ok(rows)
     }
 
-    /// Replaces the count of a counted image with `count`. Timelines are
-    /// not refitted here: call [`Store::recompute_all`] once after a batch.
+    /// Replaces the count of a counted image with `count`; a changed count
+    /// also lands in the feed as a `recount` entry. Timelines are not
+    /// refitted here: call [`Store::recompute_all`] once after a batch.
     pub fn replace_count(&mut self, image_id: i64, count: &CountRecord) -> anyhow::Result<()> {
-        let n = self.conn.execute(
+        let now = now_utc();
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let (old, plant, taken_at, view, path): (i64, String, Option<String>, Option<String>, String) = tx
+            .query_row(
+                "SELECT o.leaf_count, p.name, i.taken_at, i.view, i.path
+                 FROM observations o
+                 JOIN images i ON i.id = o.image_id
+                 JOIN plants p ON p.id = o.plant_id
+                 WHERE o.image_id = ?1",
+                [image_id],
+                |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?)),
+            )
+            .optional()?
+            .with_context(|| format!("image {image_id} has no observation to replace"))?;
+        tx.execute(
             "UPDATE observations SET leaf_count = ?2, instances = ?3, model_id = ?4, timing = ?5,
                  ms_total = ?6, settings = ?7, created_at = ?8
              WHERE image_id = ?1",
@@ -64,10 +83,25 @@ impl Store {
                 count.timing.to_string(),
                 count.ms_total,
                 count.settings_text(),
-                now_utc()
+                now
             ],
         )?;
-        anyhow::ensure!(n == 1, "image {image_id} has no observation to replace");
+        let new = i64::from(count.leaf_count);
+        if new != old {
+            let message = format!("{path}: count {old} -> {new} ({})", count.model_id);
+            let row = FeedRow {
+                kind: "recount".into(),
+                plant: Some(plant),
+                taken_at,
+                view,
+                leaf_count: Some(new),
+                path: Some(path),
+                message: Some(message),
+                ..FeedRow::default()
+            };
+            push_feed(&tx, &row, &now)?;
+        }
+        tx.commit()?;
         Ok(())
     }
 }
