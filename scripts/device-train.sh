@@ -26,6 +26,10 @@
 # from scratch or grown from --init (model.grow_state). Fine-tuning lowers the
 # centre peaks, so score fine-tunes at several centre thresholds
 # (models/EXPERIMENTS.md, "The centre loss and the count").
+# Session 24's call (models/EXPERIMENTS.md, "The first GPU run") rendered 450
+# plants in 105 s and its 14 loader workers made about 100 crops/s for both
+# runs together, with the GPU mostly idle: the loaders, not the GPU, set how
+# much a call trains.
 #
 # Environment (defaults in brackets): PLANTS [1200], SEED [100: no training or
 # test set uses it], PRESETS [the stage-4 mix, a fifth maize], MINUTES [none:
