@@ -11,7 +11,8 @@
 #   cargo build --release -p phyllo-gen
 #   mkdir -p .device && strip -o .device/phyllo-gen target/release/phyllo-gen
 #   (cd models && .venv/bin/python -m phyllo_train.from_onnx phyllo.onnx \
-#      --out ../.device/init.pt --calibrate /work/data/calib-s700001 --batch 16 --crop 512)
+#      --out ../.device/init.pt --calibrate DATA --batch 16 --crop 512)
+# (DATA: a training set, e.g. a few plants from phyllo-gen dataset; not a calibration set)
 # then call the device tool's run with carry [".device"] and a command such as
 #   MINUTES=5 PLANTS=1500 scripts/device-train.sh
 # Budget: the machine's start counts, a call may run 10 minutes and a session
@@ -20,12 +21,18 @@
 # inside the call's timeout.
 #
 # RUNS lists the trainings, `;`-separated, each `NAME|TRAIN ARGS`; they run at
-# once, sharing WORKERS loader processes. The default fine-tunes s10
+# once, sharing WORKERS loader processes; they start in models/, so give
+# paths absolute (`--init $PWD/.device/init.pt`). The default fine-tunes s10
 # (`--init .device/init.pt --freeze-bn`). A run from scratch gives no --init
 # (and a higher --lr); `--width`, `--dec` and `--ins-width` widen the network,
 # from scratch or grown from --init (model.grow_state). Fine-tuning lowers the
 # centre peaks, so score fine-tunes at several centre thresholds
 # (models/EXPERIMENTS.md, "The centre loss and the count").
+# To train the leaf-tip head with every layer at once (MODEL.md, next steps
+# item 1), add `--tips --max-tip-gap 8` to a run's arguments: the data made here
+# has leaf_tips and leaf_tip_gaps, and the exports then have the fourth output.
+# `--bf16` runs the network under bfloat16 autocast (models/EXPERIMENTS.md,
+# "bfloat16 autocast and the loader"); keep --freeze-bn with it.
 # Session 24's call (models/EXPERIMENTS.md, "The first GPU run") rendered 450
 # plants in 105 s and its 14 loader workers made about 100 crops/s for both
 # runs together, with the GPU mostly idle: the loaders, not the GPU, set how
