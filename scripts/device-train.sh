@@ -36,7 +36,9 @@
 # Session 24's call (models/EXPERIMENTS.md, "The first GPU run") rendered 450
 # plants in 105 s and its 14 loader workers made about 100 crops/s for both
 # runs together, with the GPU mostly idle: the loaders, not the GPU, set how
-# much a call trains.
+# much a call trains. So the photometric ops (about half a loader's time) run
+# batched on the GPU by default (`train --photometric device`; PHOTOMETRIC=loader
+# puts them back in the loaders).
 #
 # Environment (defaults in brackets): PLANTS [1200], SEED [100: no training or
 # test set uses it], PRESETS [the stage-4 mix, a fifth maize], MINUTES [none:
@@ -97,7 +99,7 @@ for spec in "${specs[@]}"; do
   # shellcheck disable=SC2086 # the run's train args are a word list
   (cd "$root/models" && PYTHONUNBUFFERED=1 "$py" -m phyllo_train.train --data "$data" --out "$work/run-$name" \
     --steps "$steps" ${MINUTES:+--minutes "$MINUTES"} --warmup 100 --crop "${CROP:-512}" \
-    --batch "${BATCH:-16}" --device "${DEVICE:-cuda}" --workers "$workers" \
+    --batch "${BATCH:-16}" --device "${DEVICE:-cuda}" --workers "$workers" --photometric "${PHOTOMETRIC:-device}" \
     --val-every "${VAL_EVERY:-$keep}" --ckpt-every "${VAL_EVERY:-$keep}" --log-every 50 --seed "$seed" ${spec#*|} \
     --data-note "scripts/device-train.sh: phyllo-gen dataset --plants $plants --seed $seed --preset $presets ${GEN_ARGS---dead-remnants 0.5}" \
     >"$work/train-$name.log" 2>&1 && echo "device-train: run $name finished" \

@@ -183,6 +183,126 @@ def backlight(x: np.ndarray, plant: np.ndarray, gain: float, desaturate: float) 
     return x + (dark - x) * soft[..., None]
 
 
+@dataclass
+class PhotometricDraw:
+    """One sample's photometric parameters, drawn before any pixel is touched.
+
+    Drawing apart from applying lets the same draw be applied here (NumPy and
+    PIL, in a loader process) or on the training device, batched
+    (:mod:`phyllo_train.photometric_torch`), so both paths train on the same
+    random stream. Neutral values mean "op off".
+    """
+
+    backlight: bool = False
+    backlight_gain: float = 1.0
+    backlight_desaturate: float = 0.0
+    hsv: bool = False               # hue/saturation op on (it quantises to uint8 on the CPU path)
+    hue: float = 0.0                # fraction of the hue circle
+    saturation: float = 1.0         # multiplier
+    white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    brightness: float = 1.0
+    contrast: float = 1.0
+    gradient_angle: float = 0.0
+    gradient: float = 0.0           # ramp amplitude; 0 = off
+    gamma: float = 1.0
+    fringe: tuple[int, int, int, int] = (0, 0, 0, 0)  # (dy, dx) of red, then of blue
+    blur_sigma: float = 0.0         # 0 = off
+    noise_sigma: float = 0.0        # 0..255 units; 0 = off
+    noise_seed: int = 0             # seeds the noise field (< 2**24, exact in float32)
+    jpeg_quality: int = 0           # 0 = off
+
+    FIELDS = 22  # length of :meth:`to_vector`
+
+    def to_vector(self) -> np.ndarray:
+        """The draw as a flat float64 vector (the batched device path's input)."""
+        v = [float(self.backlight), self.backlight_gain, self.backlight_desaturate, float(self.hsv), self.hue,
+             self.saturation, *self.white_balance, self.brightness, self.contrast, self.gradient_angle,
+             self.gradient, self.gamma, *map(float, self.fringe), self.blur_sigma, self.noise_sigma,
+             float(self.noise_seed), float(self.jpeg_quality)]
+        return np.asarray(v, np.float64)
+
+
+def draw_photometric(cfg: AugmentConfig, rng: np.random.Generator, with_plant: bool = True) -> PhotometricDraw:
+    """Draws the photometric ops of one sample; ``with_plant`` says whether a plant mask exists."""
+    d = PhotometricDraw()
+    if with_plant and cfg.backlight_p > 0 and rng.random() < cfg.backlight_p:
+        d.backlight = True
+        d.backlight_gain = float(rng.uniform(*cfg.backlight_gain))
+        d.backlight_desaturate = float(rng.uniform(0.0, cfg.backlight_desaturate))
+    if cfg.hue > 0 or cfg.saturation > 0:
+        d.hsv = True
+        d.hue = float(rng.uniform(-cfg.hue, cfg.hue))
+        d.saturation = 1.0 + float(rng.uniform(-cfg.saturation, cfg.saturation))
+    if cfg.white_balance > 0:
+        d.white_balance = tuple(float(g) for g in 1.0 + rng.uniform(-cfg.white_balance, cfg.white_balance, size=3))
+    if cfg.brightness > 0:
+        d.brightness = 1.0 + float(rng.uniform(-cfg.brightness, cfg.brightness))
+    if cfg.contrast > 0:
+        d.contrast = 1.0 + float(rng.uniform(-cfg.contrast, cfg.contrast))
+    if cfg.gradient > 0:
+        d.gradient_angle = float(rng.uniform(0, 2 * np.pi))
+        d.gradient = float(rng.uniform(0, cfg.gradient))
+    if cfg.gamma != (1.0, 1.0):
+        d.gamma = float(np.float32(np.exp(rng.uniform(np.log(cfg.gamma[0]), np.log(cfg.gamma[1])))))
+    if cfg.fringe_p > 0 and rng.random() < cfg.fringe_p:
+        r = rng.integers(-cfg.fringe_px, cfg.fringe_px + 1, size=2)
+        b = rng.integers(-cfg.fringe_px, cfg.fringe_px + 1, size=2)
+        d.fringe = (int(r[0]), int(r[1]), int(b[0]), int(b[1]))
+    if rng.random() < cfg.blur_p:
+        d.blur_sigma = float(rng.uniform(*cfg.blur_sigma))
+    if rng.random() < cfg.noise_p:
+        d.noise_sigma = float(rng.uniform(*cfg.noise_sigma))
+        d.noise_seed = int(rng.integers(0, 2**24))
+    if rng.random() < cfg.jpeg_p:
+        d.jpeg_quality = int(rng.integers(cfg.jpeg_quality[0], cfg.jpeg_quality[1] + 1))
+    return d
+
+
+def apply_photometric(img: np.ndarray, d: PhotometricDraw, plant: np.ndarray | None = None) -> np.ndarray:
+    """Applies a draw to a uint8 RGB image with NumPy and PIL; returns uint8.
+
+    ``plant`` (bool, the image's shape) marks plant pixels for the backlight op.
+    """
+    x = img.astype(np.float32) / 255.0
+    if d.backlight and plant is not None:
+        x = backlight(x, plant, d.backlight_gain, d.backlight_desaturate)
+    if d.hsv:
+        x = _rgb_to_hsv_shift(x, d.hue, d.saturation)
+    x = x * np.asarray(d.white_balance, np.float32)
+    x = x * np.float32(d.brightness)
+    if d.contrast != 1.0:
+        m = x.mean()
+        x = (x - m) * np.float32(d.contrast) + m
+    if d.gradient > 0:
+        # Uneven chamber lighting: a linear ramp in a random direction.
+        h, w = x.shape[:2]
+        yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+        a = d.gradient_angle
+        ramp = (np.cos(a) * (yy / h - 0.5) + np.sin(a) * (xx / w - 0.5)) * d.gradient
+        x = x * (1.0 + ramp[..., None])
+    x = np.clip(x, 0.0, 1.0)
+    if d.gamma != 1.0:
+        x = x ** np.float32(d.gamma)
+    if any(d.fringe):
+        # The real camera's lens and demosaicing leave green/magenta fringes on the
+        # chamber's grey profiles; without them in training those edges look like leaves.
+        for c, (dy, dx) in ((0, d.fringe[:2]), (2, d.fringe[2:])):
+            x[..., c] = np.roll(x[..., c], (dy, dx), axis=(0, 1))
+    out = Image.fromarray((x * 255 + 0.5).astype(np.uint8))
+    if d.blur_sigma > 0:
+        out = out.filter(ImageFilter.GaussianBlur(d.blur_sigma))
+    arr = np.asarray(out)
+    if d.noise_sigma > 0:
+        noise = np.random.default_rng(d.noise_seed).normal(0, d.noise_sigma, size=arr.shape).astype(np.float32)
+        arr = np.clip(arr.astype(np.float32) + noise, 0, 255).astype(np.uint8)
+    if d.jpeg_quality > 0:
+        buf = io.BytesIO()
+        Image.fromarray(arr).save(buf, format="JPEG", quality=d.jpeg_quality)
+        buf.seek(0)
+        arr = np.asarray(Image.open(buf).convert("RGB"))
+    return arr
+
+
 def photometric(img: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
                 plant: np.ndarray | None = None) -> np.ndarray:
     """Colour / illumination / sensor augmentation of a uint8 RGB image; returns uint8.
@@ -190,54 +310,13 @@ def photometric(img: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
     ``plant`` (bool, the image's shape) marks plant pixels for the backlight op;
     without it that op is skipped.
     """
-    x = img.astype(np.float32) / 255.0
-    if plant is not None and cfg.backlight_p > 0 and rng.random() < cfg.backlight_p:
-        x = backlight(x, plant, float(rng.uniform(*cfg.backlight_gain)),
-                      float(rng.uniform(0.0, cfg.backlight_desaturate)))
-    if cfg.hue > 0 or cfg.saturation > 0:
-        x = _rgb_to_hsv_shift(x, rng.uniform(-cfg.hue, cfg.hue), 1.0 + rng.uniform(-cfg.saturation, cfg.saturation))
-    if cfg.white_balance > 0:
-        x = x * (1.0 + rng.uniform(-cfg.white_balance, cfg.white_balance, size=3)).astype(np.float32)
-    if cfg.brightness > 0:
-        x = x * (1.0 + rng.uniform(-cfg.brightness, cfg.brightness))
-    if cfg.contrast > 0:
-        m = x.mean()
-        x = (x - m) * (1.0 + rng.uniform(-cfg.contrast, cfg.contrast)) + m
-    if cfg.gradient > 0:
-        # Uneven chamber lighting: a linear ramp in a random direction.
-        h, w = x.shape[:2]
-        a = rng.uniform(0, 2 * np.pi)
-        yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
-        ramp = (np.cos(a) * (yy / h - 0.5) + np.sin(a) * (xx / w - 0.5)) * rng.uniform(0, cfg.gradient)
-        x = x * (1.0 + ramp[..., None])
-    x = np.clip(x, 0.0, 1.0)
-    if cfg.gamma != (1.0, 1.0):
-        x = x ** np.float32(np.exp(rng.uniform(np.log(cfg.gamma[0]), np.log(cfg.gamma[1]))))
-    if cfg.fringe_p > 0 and rng.random() < cfg.fringe_p:
-        # The real camera's lens and demosaicing leave green/magenta fringes on the
-        # chamber's grey profiles; without them in training those edges look like leaves.
-        for c in (0, 2):
-            dy, dx = rng.integers(-cfg.fringe_px, cfg.fringe_px + 1, size=2)
-            x[..., c] = np.roll(x[..., c], (int(dy), int(dx)), axis=(0, 1))
-    out = Image.fromarray((x * 255 + 0.5).astype(np.uint8))
-    if rng.random() < cfg.blur_p:
-        out = out.filter(ImageFilter.GaussianBlur(rng.uniform(*cfg.blur_sigma)))
-    arr = np.asarray(out)
-    if rng.random() < cfg.noise_p:
-        noise = rng.normal(0, rng.uniform(*cfg.noise_sigma), size=arr.shape).astype(np.float32)
-        arr = np.clip(arr.astype(np.float32) + noise, 0, 255).astype(np.uint8)
-    if rng.random() < cfg.jpeg_p:
-        buf = io.BytesIO()
-        Image.fromarray(arr).save(buf, format="JPEG", quality=int(rng.integers(cfg.jpeg_quality[0], cfg.jpeg_quality[1] + 1)))
-        buf.seek(0)
-        arr = np.asarray(Image.open(buf).convert("RGB"))
-    return arr
+    return apply_photometric(img, draw_photometric(cfg, rng, plant is not None), plant)
 
 
 def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
             top_view: bool = False, label_divisor: int = 1000,
             zoom: tuple[int, float] = (0, 1.0), points: np.ndarray | None = None,
-            ) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int], np.ndarray]:
+            draw: list | None = None) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int], np.ndarray]:
     """Augment an RGB PIL image and its (H, W) label.
 
     Returns ``(rgb, label, window, points)``: the uint8 crop (size x size x 3), the
@@ -248,7 +327,9 @@ def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.ran
     that instances cut by the crop keep the centre of the whole instance, as
     the daemon's tile stitching expects. ``zoom`` is the contract's
     ``(zoom_plant_height, max_zoom)``: a small plant is enlarged as the
-    daemon enlarges it, before the scale jitter.
+    daemon enlarges it, before the scale jitter. Given a ``draw`` list, the
+    photometric ops are not applied: their :class:`PhotometricDraw` and the
+    crop's plant mask are appended to it, and ``rgb`` is the crop as rendered.
     """
     lo, hi = cfg.scale
     f = float(np.exp(rng.uniform(np.log(lo), np.log(hi)))) if hi > lo else 1.0
@@ -278,5 +359,10 @@ def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.ran
     pts += (left, top)
     y0, x0 = _crop_origin(label, size, rng, cfg.fg_crop)
     plant = label[y0:y0 + size, x0:x0 + size] >= label_divisor  # class >= 1: leaf, stem or panicle
-    arr = photometric(np.ascontiguousarray(arr[y0:y0 + size, x0:x0 + size]), cfg, rng, plant)
+    arr = np.ascontiguousarray(arr[y0:y0 + size, x0:x0 + size])
+    d = draw_photometric(cfg, rng)
+    if draw is None:
+        arr = apply_photometric(arr, d, plant)
+    else:
+        draw.append((d, plant))
     return arr, np.ascontiguousarray(label), (y0, x0, size, size), pts

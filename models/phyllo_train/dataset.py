@@ -69,11 +69,15 @@ class PanopticDataset(Dataset):
 
     Augmentation randomness is seeded from (seed, epoch, index), so a sample is
     the same whichever worker loads it, and a resumed run sees the same data.
+    With ``defer_photometric`` the image is the uint8 crop as rendered, and the
+    target holds its ``photometric`` draw and ``plant`` mask for
+    :func:`phyllo_train.photometric_torch.finish_batch` to apply on the device.
     """
 
     def __init__(self, root: str | Path, split: str | None = "train", aug: AugmentConfig | None = None,
                  contract: Contract | None = None, seed: int = 0, limit: int | None = None,
-                 small_center_weight: float = 1.0, with_tips: bool = False, max_tip_gap: float | None = None):
+                 small_center_weight: float = 1.0, with_tips: bool = False, max_tip_gap: float | None = None,
+                 defer_photometric: bool = False):
         self.root = Path(root)
         self.contract = contract or load_contract()
         self.rows = read_manifest(self.root, split)[: limit]
@@ -90,6 +94,7 @@ class PanopticDataset(Dataset):
                 raise ValueError(f"{self.root / 'manifest.jsonl'}: {len(missing)} rows have no leaf_tips "
                                  f"(first: {missing[0]}); render the set with a phyllo-gen that writes them")
         self.max_tip_gap = max_tip_gap
+        self.defer_photometric = defer_photometric
         if with_tips and max_tip_gap is not None:
             missing = [r["image"] for r in self.rows if r.get("leaf_tips") and "leaf_tip_gaps" not in r]
             if missing:
@@ -122,10 +127,11 @@ class PanopticDataset(Dataset):
             gaps = row.get("leaf_tip_gaps", {})
             tip_items = [(k, v) for k, v in tip_items if gaps.get(k, 0.0) <= self.max_tip_gap]
         tips = np.array([v for _, v in tip_items], np.float64).reshape(-1, 2)
+        draw: list | None = [] if self.defer_photometric else None
         rgb, label, window, tips = augment(img, label, cfg, rng, top_view=is_top_view(row),
                                            label_divisor=self.contract.label_divisor,
                                            zoom=(self.contract.zoom_plant_height, self.contract.max_zoom),
-                                           points=tips)
+                                           points=tips, draw=draw)
         t = make_targets(label, self.contract, window=window, small_center_weight=self.small_center_weight)
         target = {
             "semantic": torch.from_numpy(t.semantic),
@@ -137,4 +143,9 @@ class PanopticDataset(Dataset):
         }
         if self.with_tips:
             target["tip"] = torch.from_numpy(tip_heatmap(tips, window, self.contract.stride, self.contract.tip_sigma))
+        if draw is not None:
+            (d, plant), = draw
+            target["photometric"] = torch.from_numpy(d.to_vector())
+            target["plant"] = torch.from_numpy(plant)
+            return torch.from_numpy(np.ascontiguousarray(rgb.transpose(2, 0, 1))), target
         return torch.from_numpy(normalise(rgb, self.contract)), target

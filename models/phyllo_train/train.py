@@ -37,6 +37,7 @@ from .dataset import PanopticDataset, read_label, read_manifest
 from .ema import ModelEma
 from .losses import LossWeights, panoptic_loss, tip_focal_loss
 from .model import TipNet, build_model, count_parameters, grow_state, with_tip_head
+from .photometric_torch import finish_batch
 from .postprocess import decode, label_leaf_count
 
 
@@ -273,6 +274,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     ap.add_argument("--threads", type=int, default=2, help="torch intra-op threads (CPU)")
     ap.add_argument("--workers", type=int, default=1, help="data loader worker processes")
+    ap.add_argument("--photometric", choices=("loader", "device"), default="loader",
+                    help="where colour, blur, noise and JPEG are applied: in the loader processes, or batched "
+                         "on --device after the transfer (frees GPU-run loaders; same random draws)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--limit", type=int, default=None, help="use only the first N train images")
     ap.add_argument("--val-limit", type=int, default=64, help="validation images (0 = no validation)")
@@ -315,7 +319,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         train_sets = [PanopticDataset(d, "train", aug, contract, seed=args.seed, limit=args.limit,
                                       small_center_weight=args.small_center_weight, with_tips=args.tips,
-                                      max_tip_gap=args.max_tip_gap) for d in args.data]
+                                      max_tip_gap=args.max_tip_gap,
+                                      defer_photometric=args.photometric == "device") for d in args.data]
     except ValueError as e:
         raise SystemExit(str(e)) from e
     train_ds = train_sets[0] if len(train_sets) == 1 else ConcatDataset(train_sets)
@@ -435,8 +440,11 @@ def main(argv: list[str] | None = None) -> int:
             for g in opt.param_groups:
                 g["lr"] = lr_at(schedule_step(step, total, time.perf_counter() - t_start, budget_s), total,
                                 args.lr, args.warmup)
-            xs = xs.to(device, non_blocking=True).contiguous(memory_format=mem)
             ts = {k: v.to(device, non_blocking=True) for k, v in ts.items()}
+            xs = xs.to(device, non_blocking=True)
+            if args.photometric == "device":
+                xs = finish_batch(xs, ts, contract)
+            xs = xs.contiguous(memory_format=mem)
             _, loss, parts = forward_losses(model, xs, ts, weights, args.tip_weight, args.bf16)
             opt.zero_grad(set_to_none=True)
             loss.backward()

@@ -3,7 +3,9 @@
     python -m phyllo_train.train_speed --data DIR [--crop 448 --batch 3 --threads 2 --samples 24 --steps 6]
 
 It prints one table: how many augmented samples per second the data pipeline makes in one
-process (what one ``--workers`` process adds), and the optimiser steps of the network in
+process (what one ``--workers`` process adds), with the photometric ops in it and without
+them (``train --photometric device``), what those ops then cost batched in the training
+process, and the optimiser steps of the network in
 float32 and under bfloat16 autocast (``train --bf16``) on a fixed batch, alternated so that a
 noisy machine slows both alike. A run is bounded by the slower of the two sides, and on a
 small CPU both share the same cores.
@@ -21,6 +23,7 @@ from .augment import AugmentConfig
 from .dataset import PanopticDataset
 from .losses import LossWeights
 from .model import build_model
+from .photometric_torch import finish_batch
 from .train import collate, forward_losses
 
 
@@ -31,6 +34,19 @@ def loader_rate(ds: PanopticDataset, samples: int) -> float:
     for i in range(1, samples + 1):
         ds[i % len(ds)]
     return samples / (time.perf_counter() - t)
+
+
+def device_photometric_times(ds: PanopticDataset, batch: int, rounds: int) -> list[float]:
+    """Seconds per batch for :func:`finish_batch` in this process (``ds`` defers its photometric ops)."""
+    samples = [ds[i % len(ds)] for i in range(batch)]
+    times = []
+    for r in range(rounds + 1):
+        xs, ts = collate(samples)
+        t = time.perf_counter()
+        finish_batch(xs, ts, ds.contract)
+        if r:  # the first call warms up
+            times.append(time.perf_counter() - t)
+    return times
 
 
 def step_times(ds: PanopticDataset, batch: int, steps: int, rounds: int = 2) -> dict[bool, list[float]]:
@@ -81,9 +97,15 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", type=int, default=6, help="timed steps per precision and round (two rounds)")
     args = ap.parse_args(argv)
     ds = PanopticDataset(args.data, "train", AugmentConfig(crop=args.crop), seed=19)
+    deferred = PanopticDataset(args.data, "train", AugmentConfig(crop=args.crop), seed=19, defer_photometric=True)
     torch.set_num_threads(1)
-    rate = loader_rate(ds, args.samples)
+    rates = {False: [], True: []}
+    for _ in range(2):  # alternated, so a noisy machine slows both alike
+        for defer in (False, True):
+            rates[defer].append(loader_rate(deferred if defer else ds, args.samples // 2))
+    rate, rate_deferred = (statistics.median(rates[k]) for k in (False, True))
     torch.set_num_threads(args.threads)
+    photometric = statistics.median(device_photometric_times(deferred, args.batch, args.steps))
     times = step_times(ds, args.batch, args.steps)
     fp32, bf16 = (statistics.median(times[k]) for k in (False, True))
     print(f"{args.crop}² crops, batch {args.batch}, {args.threads} torch threads, "
@@ -92,6 +114,10 @@ def main(argv=None) -> None:
     print("| stage | ms per sample | samples/s | relative |")
     print("|---|---:|---:|---:|")
     print(f"| data pipeline, one process (decode, augment, targets) | {1000 / rate:.0f} | {rate:.2f} | |")
+    print(f"| data pipeline without photometric ops (`--photometric device`) | {1000 / rate_deferred:.0f} | "
+          f"{rate_deferred:.2f} | |")
+    print(f"| photometric ops batched in the training process, {args.threads} threads | "
+          f"{1000 * photometric / args.batch:.0f} | {args.batch / photometric:.2f} | |")
     print(f"| optimiser step, float32 | {1000 * fp32 / args.batch:.0f} | {args.batch / fp32:.2f} | 1.00 |")
     print(f"| optimiser step, bfloat16 autocast | {1000 * bf16 / args.batch:.0f} | {args.batch / bf16:.2f} | "
           f"{fp32 / bf16:.2f} |")

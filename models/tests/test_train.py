@@ -113,6 +113,7 @@ def test_train_speed_prints_its_table(tiny_dataset, capsys):
                       "--samples", "2", "--steps", "1"])
     out = capsys.readouterr().out
     assert "| data pipeline, one process" in out
+    assert "| data pipeline without photometric ops" in out and "| photometric ops batched" in out
     assert "| optimiser step, float32 |" in out and "| 1.00 |" in out
     assert "| optimiser step, bfloat16 autocast |" in out
 
