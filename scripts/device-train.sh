@@ -13,6 +13,12 @@
 #   (cd models && .venv/bin/python -m phyllo_train.from_onnx phyllo.onnx \
 #      --out ../.device/init.pt --calibrate DATA --batch 16 --crop 512)
 # (DATA: a training set, e.g. a few plants from phyllo-gen dataset; not a calibration set)
+# To go on from an earlier call's network instead of s10, give from_onnx that
+# call's export (the wider layout comes from its phyllo.architecture metadata,
+# and train takes it from init.pt, so the runs need no --width/--dec/--ins-width).
+# Checkpoints left in models/runs are lost with this machine: commit an export
+# worth continuing (models/candidates/, a few MB) so that the next lent GPU
+# starts from it.
 # then call the device tool's run with carry [".device"] and a command such as
 #   MINUTES=5 PLANTS=1500 scripts/device-train.sh
 # Budget: the machine's start counts, a call may run 10 minutes and a session

@@ -11,6 +11,7 @@ a batch (and on a non-square size, to exercise the dynamic H, W).
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import warnings
 from pathlib import Path
@@ -23,6 +24,7 @@ from .contract import Contract, load_contract
 from .model import TipNet, architecture_kwargs, build_model, count_parameters, with_tip_head
 
 OPSET = 17
+ARCHITECTURE_KEY = "phyllo.architecture"
 
 
 def export_onnx(model: torch.nn.Module, out: str | Path, contract: Contract, *, model_name: str,
@@ -60,6 +62,10 @@ def export_onnx(model: torch.nn.Module, out: str | Path, contract: Contract, *, 
         "phyllo.parameters": str(count_parameters(model)),
         "phyllo.output_stride": str(contract.stride),
     }
+    base = model.base if isinstance(model, TipNet) else model
+    if hasattr(base, "architecture"):
+        # from_onnx rebuilds a wider network from this, so a GPU run can continue from its export.
+        meta[ARCHITECTURE_KEY] = json.dumps(base.architecture())
     meta.update(extra_meta or {})
     stamp_metadata(proto, meta)
     proto.producer_name = "phyllo_train"

@@ -3,6 +3,10 @@
     python -m phyllo_train.from_onnx models/phyllo.onnx --out runs/s10-onnx/best.pt \
         [--calibrate /work/data/train-s2 --images 64]
 
+A wider network (``train --width/--dec/--ins-width``) is rebuilt as its
+export's ``phyllo.architecture`` metadata says, so training can go on from
+any committed export, e.g. one a GPU call brought back.
+
 Training checkpoints are not committed; the shipped ONNX file is. Without
 this, continuing from the shipped model means rerunning its whole recipe
 (hours on a CPU). Export folds each BatchNorm into the convolution before
@@ -24,6 +28,7 @@ fine-tuning starts from the shipped model instead of from a jolt.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -34,13 +39,33 @@ from onnx import numpy_helper
 from torch import nn
 
 from .contract import Contract, load_contract
-from .export import check_onnx
-from .model import PhylloNet, TipHead, TipNet, build_model
+from .export import ARCHITECTURE_KEY, check_onnx
+from .model import PhylloNet, TipHead, TipNet, architecture_kwargs, build_model
 
 
 def has_tip_output(path: str | Path, contract: Contract) -> bool:
     """Whether the ONNX file has the contract's optional leaf-tip output (a :class:`TipNet`)."""
     return contract.tip_name in [o.name for o in onnx.load(str(path)).graph.output]
+
+
+def architecture_of(path: str | Path, given: dict) -> dict:
+    """``build_model`` keyword arguments for the network in ``path``: its ``phyllo.architecture``
+    metadata, else ``given`` (``width``/``dec``/``ins_width`` as ``train`` takes them; None: default)."""
+    meta = {p.key: p.value for p in onnx.load(str(path), load_external_data=False).metadata_props}
+    stamped = meta.get(ARCHITECTURE_KEY)
+    if stamped is not None:
+        kw = architecture_kwargs(json.loads(stamped))
+        if any(v is not None for v in given.values()):
+            wanted = architecture_kwargs(given)
+            clash = [k for k, v in wanted.items() if k != "instance_stride" and v is not None and v != kw[k]]
+            if clash:
+                raise ValueError(f"{path}: its metadata says {', '.join(f'{k}={kw[k]}' for k in clash)}, "
+                                 f"not what was given")
+    else:
+        kw = architecture_kwargs(given)
+    if kw["instance_stride"] != 4:
+        raise ValueError(f"{path}: instance heads at stride {kw['instance_stride']}; only stride 4 can be rebuilt")
+    return kw
 
 
 def onnx_convs(path: str | Path) -> list[tuple[str, np.ndarray, np.ndarray | None]]:
@@ -197,11 +222,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--head-out", type=Path, default=None,
                     help="with a tip model: also write its tip head as a `phyllo_train.tips train` checkpoint "
                          "(for `train --tips --init-tip-head`)")
+    ap.add_argument("--width", default=None,
+                    help="encoder channels (train --width) of a file exported before the architecture was "
+                         "stamped in its metadata; newer files say it themselves")
+    ap.add_argument("--dec", default=None, help="decoder channels (train --dec), as --width")
+    ap.add_argument("--ins-width", type=int, default=None, help="instance branch channels (train --ins-width), as --width")
     ap.add_argument("--contract", default=None, help="contract.toml (default: models/contract.toml)")
     args = ap.parse_args(argv)
 
     contract = load_contract(args.contract)
-    model = build_model(contract.num_classes, seed=0)
+    try:
+        arch = architecture_of(args.onnx, {"width": args.width, "dec": args.dec, "ins_width": args.ins_width})
+        model = build_model(contract.num_classes, seed=0, **arch)
+    except (ValueError, OSError) as e:
+        print(f"from_onnx: {e}", file=sys.stderr)
+        return 2
     try:
         # A model with a tip head is rebuilt whole and checked whole; the checkpoint keeps
         # the base network only (phyllo_train.tips trains the head on top of it again).
@@ -233,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     torch.save({
         "model": state, "raw_model": state, "ema": None, "step": 0, "best": float("inf"),
-        "args": {"instance_stride": 4, "from_onnx": str(args.onnx)},
+        "args": {**model.architecture(), "from_onnx": str(args.onnx)},
         "training_data": meta.get(contract.meta_training_data, "unknown"),
         "contract_version": contract.version,
         "from_onnx": {"file": str(args.onnx), "model_name": meta.get(contract.meta_model_name, "")},

@@ -148,6 +148,7 @@ class PhylloNet(nn.Module):
         if instance_stride not in (2, 4):
             raise ValueError(f"instance_stride must be 2 or 4, got {instance_stride}")
         self.instance_stride = instance_stride
+        self.width, self.dec, self.ins_width = tuple(width), tuple(dec), ins_width
         c2, c4, c8, c16, c32 = width
         d16, d8, d4, d2 = dec
         # Channels of :meth:`features`' two outputs, which a tip head reads.
@@ -191,6 +192,11 @@ class PhylloNet(nn.Module):
             nn.init.zeros_(head[-1].bias)
         if self.ins_up2 is not None:
             self.ins_up2.zero_init()
+
+    def architecture(self) -> dict:
+        """The ``build_model`` keyword arguments that rebuild this network's layout (JSON-ready)."""
+        return {"instance_stride": self.instance_stride, "width": list(self.width), "dec": list(self.dec),
+                "ins_width": self.ins_width}
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """x: normalised NCHW float32, H and W multiples of 32."""

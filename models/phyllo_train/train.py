@@ -36,7 +36,7 @@ from .contract import load_contract
 from .dataset import PanopticDataset, read_label, read_manifest
 from .ema import ModelEma
 from .losses import LossWeights, panoptic_loss, tip_focal_loss
-from .model import TipNet, build_model, count_parameters, grow_state, with_tip_head
+from .model import TipNet, architecture_kwargs, build_model, count_parameters, grow_state, with_tip_head
 from .photometric_torch import finish_batch
 from .postprocess import decode, label_leaf_count
 
@@ -89,6 +89,15 @@ def _widths(text: str) -> tuple[int, ...]:
 def _encoder_widths(text: str) -> tuple[int, ...]:
     """``--width`` parser: five comma-separated channel counts (strides 2 to 32)."""
     return _counts(text, 5)
+
+
+def inherit_architecture(args: argparse.Namespace, init_args: dict | None) -> None:
+    """Widths not given on the command line come from the --init checkpoint's layout, so a run
+    continues a wider network without repeating its --width/--dec/--ins-width."""
+    layout = architecture_kwargs(init_args)
+    for key in ("width", "dec", "ins_width"):
+        if getattr(args, key) is None and layout[key] is not None:
+            setattr(args, key, layout[key])
 
 
 def init_weights(model: torch.nn.Module, state: dict) -> list[str]:
@@ -338,6 +347,8 @@ def main(argv: list[str] | None = None) -> int:
 
     # channels_last: ~2.5x faster depthwise conv / BN training on CPU (oneDNN), also good on GPUs.
     mem = torch.channels_last
+    if args.init is not None:
+        inherit_architecture(args, torch.load(args.init, map_location="cpu", weights_only=False).get("args"))
     model = build_model(contract.num_classes, seed=args.seed, instance_stride=args.instance_stride,
                         dec=args.dec, ins_width=args.ins_width, width=args.width)
     if args.tips:
