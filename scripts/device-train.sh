@@ -7,7 +7,9 @@
 # $OUT, to be scored here (scripts/compare-models.sh on the calibration sets,
 # then scripts/model-metrics.sh). Nothing here is needed for CI.
 #
-# Prepare on this machine, from the repository root:
+# Prepare on this machine with scripts/device-prepare.sh [INIT_ONNX]: it does
+# what follows, proves it with a toy run of this script on the CPU, and prints
+# the device call. By hand, from the repository root:
 #   cargo build --release -p phyllo-gen
 #   mkdir -p .device && strip -o .device/phyllo-gen target/release/phyllo-gen
 #   (cd models && .venv/bin/python -m phyllo_train.from_onnx phyllo.onnx \
