@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from torch.utils.data import ConcatDataset, DataLoader
+from torch.utils.data import DataLoader
 
 from .augment import AugmentConfig, add_noise_args, with_noise_args
 from .contract import load_contract
@@ -38,6 +38,7 @@ from .ema import ModelEma
 from .losses import LossWeights, panoptic_loss, tip_focal_loss
 from .model import TipNet, architecture_kwargs, build_model, count_parameters, grow_state, with_tip_head
 from .photometric_torch import finish_batch
+from .run_batches import EpochIndexed, RunBatches, epoch_batches  # noqa: F401 (epoch_batches: the run's order)
 from .postprocess import decode, label_leaf_count
 
 
@@ -132,12 +133,6 @@ def schedule_step(step: int, total: int, elapsed_s: float, budget_s: float | Non
     if not budget_s:
         return step
     return max(step, min(total, int(total * elapsed_s / budget_s)))
-
-
-def epoch_batches(n: int, batch: int, seed: int, epoch: int) -> list[list[int]]:
-    """Deterministic shuffled batches of one epoch (drop_last so BN never sees a batch of 1)."""
-    perm = np.random.default_rng([seed, 1_000_003, epoch]).permutation(n)
-    return [perm[i:i + batch].tolist() for i in range(0, n - batch + 1, batch)]
 
 
 def collate(samples):
@@ -332,7 +327,7 @@ def main(argv: list[str] | None = None) -> int:
                                       defer_photometric=args.photometric == "device") for d in args.data]
     except ValueError as e:
         raise SystemExit(str(e)) from e
-    train_ds = train_sets[0] if len(train_sets) == 1 else ConcatDataset(train_sets)
+    train_ds = EpochIndexed(train_sets)
     val_ds = None
     if args.val_limit:
         try:
@@ -438,67 +433,64 @@ def main(argv: list[str] | None = None) -> int:
     t_last, imgs_since = time.perf_counter(), 0
     t_start = time.perf_counter()
     budget_s = args.minutes * 60 if args.minutes else None
-    while step < total:
+    # One loader for the whole run: its workers start once, not at every epoch (run_batches).
+    loader = DataLoader(train_ds, batch_sampler=RunBatches(len(train_ds), args.batch, args.seed, step, total),
+                        num_workers=args.workers, collate_fn=collate, pin_memory=device.type == "cuda")
+    for xs, ts in loader:
+        if step >= total:
+            break
         epoch = step // per_epoch
-        for ds in train_sets:
-            ds.set_epoch(epoch)
-        batches = epoch_batches(len(train_ds), args.batch, args.seed, epoch)[step % per_epoch:]
-        loader = DataLoader(train_ds, batch_sampler=batches, num_workers=args.workers, collate_fn=collate,
-                            persistent_workers=False, pin_memory=device.type == "cuda")
-        for xs, ts in loader:
-            if step >= total:
-                break
-            for g in opt.param_groups:
-                g["lr"] = lr_at(schedule_step(step, total, time.perf_counter() - t_start, budget_s), total,
-                                args.lr, args.warmup)
-            ts = {k: v.to(device, non_blocking=True) for k, v in ts.items()}
-            xs = xs.to(device, non_blocking=True)
-            if args.photometric == "device":
-                xs = finish_batch(xs, ts, contract)
-            xs = xs.contiguous(memory_format=mem)
-            _, loss, parts = forward_losses(model, xs, ts, weights, args.tip_weight, args.bf16)
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            parts["grad_norm"] = float(torch.nn.utils.clip_grad_norm_(model.parameters(), 5.0))
-            opt.step()
-            if ema is not None:
-                ema.update(model)
-            step += 1
-            if budget_s and time.perf_counter() - t_start >= budget_s:
-                total = step  # the time is spent: this step is the last
-            imgs_since += len(xs)
-            for k, v in parts.items():
-                run_avg[k] = v if k not in run_avg else 0.9 * run_avg[k] + 0.1 * v
-            if step % args.log_every == 0 or step == total:
-                now = time.perf_counter()
-                rate = imgs_since / max(1e-9, now - t_last)
-                t_last, imgs_since = now, 0
-                eta = (total - step) * args.batch / max(rate, 1e-9)
-                extra = "".join(f" {k} {run_avg[k]:.3f}" for k in ("tip", "focal") if k in run_avg)
-                msg = (f"step {step}/{total} ep {epoch} | loss {run_avg['loss']:.4f} (sem {run_avg['sem']:.4f} "
-                       f"ctr {run_avg['center']:.5f} off {run_avg['offset']:.3f}{extra}) | grad {run_avg['grad_norm']:.2f} | "
-                       f"{rate:.1f} img/s | "
-                       f"lr {opt.param_groups[0]['lr']:.2e} | eta {int(eta // 60)}m{int(eta % 60):02d}s")
-                print(("\r" + msg) if tty else msg, end="" if tty else "\n", flush=True)
-                log.write(json.dumps({"step": step, "epoch": epoch, "rate": rate, **run_avg}) + "\n")
-                log.flush()
-            if step % args.ckpt_every == 0 or step == total:
-                checkpoint(last)
-            if args.keep_every and step % args.keep_every == 0:
-                checkpoint(args.out / f"step-{step:06d}.pt")
-            if val_ds is not None and (step % args.val_every == 0 or step == total):
-                res = evaluate(ema.module if ema is not None else model, val_ds, device, weights, args.batch,
-                               args.tip_weight)
-                set_train_mode(model, args.freeze_bn)
-                if tty:
-                    print()
-                print("val: " + " ".join(f"{k[4:]} {v:.4f}" for k, v in res.items()), flush=True)
-                log.write(json.dumps({"step": step, **res}) + "\n")
-                log.flush()
-                if res["val_loss"] < best:
-                    best = res["val_loss"]
-                    checkpoint(args.out / "best.pt")
-                checkpoint(last)
+        for g in opt.param_groups:
+            g["lr"] = lr_at(schedule_step(step, total, time.perf_counter() - t_start, budget_s), total,
+                            args.lr, args.warmup)
+        ts = {k: v.to(device, non_blocking=True) for k, v in ts.items()}
+        xs = xs.to(device, non_blocking=True)
+        if args.photometric == "device":
+            xs = finish_batch(xs, ts, contract)
+        xs = xs.contiguous(memory_format=mem)
+        _, loss, parts = forward_losses(model, xs, ts, weights, args.tip_weight, args.bf16)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        parts["grad_norm"] = float(torch.nn.utils.clip_grad_norm_(model.parameters(), 5.0))
+        opt.step()
+        if ema is not None:
+            ema.update(model)
+        step += 1
+        if budget_s and time.perf_counter() - t_start >= budget_s:
+            total = step  # the time is spent: this step is the last
+        imgs_since += len(xs)
+        for k, v in parts.items():
+            run_avg[k] = v if k not in run_avg else 0.9 * run_avg[k] + 0.1 * v
+        if step % args.log_every == 0 or step == total:
+            now = time.perf_counter()
+            rate = imgs_since / max(1e-9, now - t_last)
+            t_last, imgs_since = now, 0
+            eta = (total - step) * args.batch / max(rate, 1e-9)
+            extra = "".join(f" {k} {run_avg[k]:.3f}" for k in ("tip", "focal") if k in run_avg)
+            msg = (f"step {step}/{total} ep {epoch} | loss {run_avg['loss']:.4f} (sem {run_avg['sem']:.4f} "
+                   f"ctr {run_avg['center']:.5f} off {run_avg['offset']:.3f}{extra}) | grad {run_avg['grad_norm']:.2f} | "
+                   f"{rate:.1f} img/s | "
+                   f"lr {opt.param_groups[0]['lr']:.2e} | eta {int(eta // 60)}m{int(eta % 60):02d}s")
+            print(("\r" + msg) if tty else msg, end="" if tty else "\n", flush=True)
+            log.write(json.dumps({"step": step, "epoch": epoch, "rate": rate, **run_avg}) + "\n")
+            log.flush()
+        if step % args.ckpt_every == 0 or step == total:
+            checkpoint(last)
+        if args.keep_every and step % args.keep_every == 0:
+            checkpoint(args.out / f"step-{step:06d}.pt")
+        if val_ds is not None and (step % args.val_every == 0 or step == total):
+            res = evaluate(ema.module if ema is not None else model, val_ds, device, weights, args.batch,
+                           args.tip_weight)
+            set_train_mode(model, args.freeze_bn)
+            if tty:
+                print()
+            print("val: " + " ".join(f"{k[4:]} {v:.4f}" for k, v in res.items()), flush=True)
+            log.write(json.dumps({"step": step, **res}) + "\n")
+            log.flush()
+            if res["val_loss"] < best:
+                best = res["val_loss"]
+                checkpoint(args.out / "best.pt")
+            checkpoint(last)
     if tty:
         print()
     if val_ds is None or not (args.out / "best.pt").exists():
