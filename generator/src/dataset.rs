@@ -15,6 +15,7 @@ use crate::render::{self, look::Look, Quality, Scene, Stage, View};
 use crate::{png_io, rng, sampling, tips};
 use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -143,18 +144,31 @@ pub fn run(args: &DatasetArgs) -> anyhow::Result<()> {
         ProgressStyle::with_template("{bar:40} {pos}/{len} pairs  {per_sec}  eta {eta}  {msg}")
             .expect("valid template"),
     );
+    let todo: Vec<(u64, Vec<&View>)> = mine
+        .iter()
+        .map(|&p| {
+            let pending: Vec<&View> = args
+                .views
+                .iter()
+                .filter(|v| !meta_path(&args.out, p, v).exists())
+                .collect();
+            (p, pending)
+        })
+        .collect();
+    bar.inc(
+        todo.iter()
+            .map(|(_, v)| (args.views.len() - v.len()) as u64)
+            .sum(),
+    );
+    // Plants render side by side: each one's serial work (growing the mesh,
+    // building its BVH, encoding PNGs) then overlaps other plants' pixels
+    // instead of idling the other cores. Every item is seeded by its plant
+    // and view, so the files do not depend on the order.
+    todo.par_iter()
+        .filter(|(_, pending)| !pending.is_empty())
+        .try_for_each(|(p, pending)| render_plant(args, *p, pending, &bar))?;
     let mut rows = Vec::new();
     for &p in &mine {
-        let pending: Vec<&View> = args
-            .views
-            .iter()
-            .filter(|v| !meta_path(&args.out, p, v).exists())
-            .collect();
-        if !pending.is_empty() {
-            render_plant(args, p, &pending, &bar)?;
-        } else {
-            bar.inc(args.views.len() as u64);
-        }
         for v in &args.views {
             let path = meta_path(&args.out, p, v);
             let text =
