@@ -46,7 +46,9 @@
 # runs together, with the GPU mostly idle: the loaders, not the GPU, set how
 # much a call trains. So the photometric ops (about half a loader's time) run
 # batched on the GPU by default (`train --photometric device`; PHOTOMETRIC=loader
-# puts them back in the loaders).
+# puts them back in the loaders). Each training log line says the share of
+# time the network waited for batches (`data wait N%`): high, more loader
+# work is the limit; near 0, the GPU is (then try `--bf16`).
 #
 # Environment (defaults in brackets): PLANTS [1200], SEED [100: no training or
 # test set uses it], PRESETS [the stage-4 mix, a fifth maize], MINUTES [none:

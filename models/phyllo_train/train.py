@@ -436,9 +436,15 @@ def main(argv: list[str] | None = None) -> int:
     # One loader for the whole run: its workers start once, not at every epoch (run_batches).
     loader = DataLoader(train_ds, batch_sampler=RunBatches(len(train_ds), args.batch, args.seed, step, total),
                         num_workers=args.workers, collate_fn=collate, pin_memory=device.type == "cuda")
-    for xs, ts in loader:
-        if step >= total:
+    batches = iter(loader)
+    waited = 0.0  # seconds spent waiting for the loader since the last log line
+    while step < total:
+        asked = time.perf_counter()
+        got = next(batches, None)
+        waited += time.perf_counter() - asked
+        if got is None:
             break
+        xs, ts = got
         epoch = step // per_epoch
         for g in opt.param_groups:
             g["lr"] = lr_at(schedule_step(step, total, time.perf_counter() - t_start, budget_s), total,
@@ -464,15 +470,18 @@ def main(argv: list[str] | None = None) -> int:
         if step % args.log_every == 0 or step == total:
             now = time.perf_counter()
             rate = imgs_since / max(1e-9, now - t_last)
-            t_last, imgs_since = now, 0
+            # The share of the time the network sat waiting for batches: near 0, the
+            # network (GPU or CPU) sets the pace; high, the loader workers do.
+            data_wait = waited / max(1e-9, now - t_last)
+            t_last, imgs_since, waited = now, 0, 0.0
             eta = (total - step) * args.batch / max(rate, 1e-9)
             extra = "".join(f" {k} {run_avg[k]:.3f}" for k in ("tip", "focal") if k in run_avg)
             msg = (f"step {step}/{total} ep {epoch} | loss {run_avg['loss']:.4f} (sem {run_avg['sem']:.4f} "
                    f"ctr {run_avg['center']:.5f} off {run_avg['offset']:.3f}{extra}) | grad {run_avg['grad_norm']:.2f} | "
-                   f"{rate:.1f} img/s | "
+                   f"{rate:.1f} img/s, data wait {100 * data_wait:.0f}% | "
                    f"lr {opt.param_groups[0]['lr']:.2e} | eta {int(eta // 60)}m{int(eta % 60):02d}s")
             print(("\r" + msg) if tty else msg, end="" if tty else "\n", flush=True)
-            log.write(json.dumps({"step": step, "epoch": epoch, "rate": rate, **run_avg}) + "\n")
+            log.write(json.dumps({"step": step, "epoch": epoch, "rate": rate, "data_wait": data_wait, **run_avg}) + "\n")
             log.flush()
         if step % args.ckpt_every == 0 or step == total:
             checkpoint(last)

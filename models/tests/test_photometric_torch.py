@@ -129,6 +129,11 @@ def test_training_with_device_photometric_runs_and_resumes(tiny_dataset, tmp_pat
     assert train.main(args + ["--steps", "3"]) == 0  # resumes from last.pt
     ck = torch.load(run / "last.pt", map_location="cpu", weights_only=False)
     assert ck["step"] == 3
+    # Each log line says what share of the time the network waited for the loader.
+    import json
+    rows = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+    steps = [r for r in rows if "rate" in r]
+    assert [r["step"] for r in steps] == [1, 2, 3] and all(0.0 <= r["data_wait"] <= 1.0 for r in steps)
     xs, ts = collate([PanopticDataset(tiny_dataset, "train", AugmentConfig(crop=64), defer_photometric=True)[i]
                       for i in range(2)])
     assert xs.dtype == torch.uint8 and ts["photometric"].shape == (2, PhotometricDraw.FIELDS)
