@@ -15,7 +15,10 @@
 #
 # Usage: scripts/device-prepare.sh [INIT_ONNX]
 # Environment: CALIB_DATA [render 16 whole-season plants, seed 4242, to
-#   /work/data/device-calib-s4242], BATCH [16], CROP [512], PYTHON [models/.venv/bin/python].
+#   /work/data/device-calib-s4242], BATCH [16], CROP [512], PYTHON [models/.venv/bin/python],
+#   RUNS [one run growing s10 to session 24's wider layout; device-train.sh's
+#   format, `$PWD/` standing for the repository root on either machine]: the
+#   toy run trains these very arguments, and the printed call passes them.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -23,6 +26,7 @@ init_onnx=$(realpath "${1:-models/phyllo.onnx}")
 py=${PYTHON:-models/.venv/bin/python}
 [[ $py == */* && $py != /* ]] && py=$root/$py  # not realpath: a venv's python is a symlink
 batch=${BATCH:-16}
+runs=${RUNS:-'grow|--init $PWD/.device/init.pt --width 24,32,48,96,160 --dec 96,64,48,32 --ins-width 64 --lr 3e-4 --freeze-bn'}
 crop=${CROP:-512}
 [ -x "$py" ] || { echo "device-prepare: no Python at $py (make models/.venv first, see README)"; exit 2; }
 [ -e "$init_onnx" ] || { echo "device-prepare: no ONNX file at $init_onnx"; exit 2; }
@@ -46,22 +50,24 @@ fi
 toy=$(mktemp -d)
 trap 'rm -rf "$toy"' EXIT
 OUT_DIR=$toy/out WORK=$toy/work PLANTS=4 SHARDS=2 STEPS=2 BATCH=2 CROP=128 DEVICE=cpu WORKERS=1 \
-  PYTHON=$py RUNS="toy|--init $root/.device/init.pt --lr 1e-4 --freeze-bn" \
-  bash scripts/device-train.sh >"$toy/log" 2>&1 || true
-if ! ls "$toy"/out/*-toy-last.onnx >/dev/null 2>&1; then
-  echo "device-prepare: the toy run of device-train.sh made no ONNX export; its log:"
-  tail -20 "$toy/log"
-  exit 1
-fi
-echo "device-prepare: toy run of device-train.sh on this CPU exported $(basename "$toy"/out/*-toy-last.onnx)"
+  PYTHON=$py RUNS=${runs//\$PWD/$root} bash scripts/device-train.sh >"$toy/log" 2>&1 || true
+IFS=';' read -ra specs <<<"$runs"
+for spec in "${specs[@]}"; do
+  if [ ! -e "$toy/out/device-s100-${spec%%|*}-last.onnx" ]; then
+    echo "device-prepare: the toy run of device-train.sh made no export of run ${spec%%|*}; its log:"
+    tail -20 "$toy/log"
+    exit 1
+  fi
+done
+echo "device-prepare: toy run of device-train.sh on this CPU exported $(cd "$toy/out" && ls -- *.onnx | tr '\n' ' ')"
 du -sh .device | sed 's/^/device-prepare: carry /'
 cat <<EOF
 device-prepare: ready. Call the device tool's run with carry [".device"], timeout_s 590, and e.g.
   MINUTES=6 STEPS=100000 VAL_EVERY=500 PLANTS=2400 SHARDS=16 GEN_SECONDS=90 WORKERS=14 BATCH=$batch CROP=$crop \\
     PRESETS=btx623,pawaga,rtx430,sc301,tx3197,maize:1.7,maize-late:2 \\
     GEN_ARGS="--dead-remnants 0.5 --max-age 84 --max-leaves 16" \\
-    RUNS="grow|--init \$PWD/.device/init.pt --width 24,32,48,96,160 --dec 96,64,48,32 --ins-width 64 --lr 3e-4 --freeze-bn" \\
+    RUNS="$runs" \\
     bash scripts/device-train.sh
 (One run with every worker; photometric ops on the GPU by default. Starting from
-a wider export, drop --width/--dec/--ins-width: train takes them from init.pt.)
+a wider export, give RUNS without --width/--dec/--ins-width: train takes them from init.pt.)
 EOF
