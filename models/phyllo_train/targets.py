@@ -115,19 +115,22 @@ def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, in
         # Centre of mass in whole-label input pixels -> output pixel coordinates of the crop.
         cy = (np.bincount(inv, weights=ys) / area - y0 - (s - 1) / 2.0) / s
         cx = (np.bincount(inv, weights=xs) / area - x0 - (s - 1) / 2.0) / s
-        grid_y, grid_x = np.mgrid[0:h, 0:w].astype(np.float32)
-        for k, pid in enumerate(uniq):
-            if area[k] < s * s:
-                continue  # a sliver smaller than one output pixel: no centre, it cannot be decoded
-            m = instances == pid
-            if m.any():
-                offset[0][m] = cy[k] - grid_y[m]
-                offset[1][m] = cx[k] - grid_x[m]
-                if area[k] < small_area:
-                    sem_w[m] = small_weight
-            centers.append((cy[k], cx[k]))
-            centers_int.append((int(np.rint(cy[k])), int(np.rint(cx[k]))))
-            if area[k] < small_area:
+        # A sliver smaller than one output pixel gets no centre: it cannot be decoded.
+        kept = area >= s * s
+        small = kept & (area < small_area)
+        # Every output-pixel instance id is some input pixel's, so it is in uniq:
+        # one lookup replaces a mask per instance (the loader's hot loop).
+        py, px = np.nonzero(instances)
+        k = np.searchsorted(uniq, instances[py, px])
+        on = kept[k]
+        py, px, k = py[on], px[on], k[on]
+        offset[0][py, px] = cy[k] - py.astype(np.float32)
+        offset[1][py, px] = cx[k] - px.astype(np.float32)
+        sem_w[py[small[k]], px[small[k]]] = small_weight
+        for kk in np.flatnonzero(kept):
+            centers.append((cy[kk], cx[kk]))
+            centers_int.append((int(np.rint(cy[kk])), int(np.rint(cx[kk]))))
+            if small[kk]:
                 small_centers.append(centers_int[-1])
     # Gaussians whose centre lies outside the crop still contribute their visible tail.
     center = gaussian_heatmap((h, w), np.array(centers_int, dtype=np.int64).reshape(-1, 2), contract.center_sigma)
