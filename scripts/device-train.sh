@@ -48,7 +48,9 @@
 # batched on the GPU by default (`train --photometric device`; PHOTOMETRIC=loader
 # puts them back in the loaders). Each training log line says the share of
 # time the network waited for batches (`data wait N%`): high, more loader
-# work is the limit; near 0, the GPU is (then try `--bf16`).
+# work is the limit; near 0, the GPU is (then try `--bf16`). Each run also
+# decodes its training PNGs once before its workers start (`train --preload`,
+# ~1.6 MB of RAM a pair; PRELOAD=0 turns it off).
 #
 # Environment (defaults in brackets): PLANTS [1200], SEED [100: no training or
 # test set uses it], PRESETS [the stage-4 mix, a fifth maize], MINUTES [none:
@@ -110,6 +112,7 @@ for spec in "${specs[@]}"; do
   (cd "$root/models" && PYTHONUNBUFFERED=1 "$py" -m phyllo_train.train --data "$data" --out "$work/run-$name" \
     --steps "$steps" ${MINUTES:+--minutes "$MINUTES"} --warmup 100 --crop "${CROP:-512}" \
     --batch "${BATCH:-16}" --device "${DEVICE:-cuda}" --workers "$workers" --photometric "${PHOTOMETRIC:-device}" \
+    $([ "${PRELOAD:-1}" = 1 ] && echo --preload) \
     --val-every "${VAL_EVERY:-$keep}" --ckpt-every "${VAL_EVERY:-$keep}" --log-every 50 --seed "$seed" ${spec#*|} \
     --data-note "scripts/device-train.sh: phyllo-gen dataset --plants $plants --seed $seed --preset $presets ${GEN_ARGS---dead-remnants 0.5}" \
     >"$work/train-$name.log" 2>&1 && echo "device-train: run $name finished" \

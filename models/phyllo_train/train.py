@@ -278,6 +278,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     ap.add_argument("--threads", type=int, default=2, help="torch intra-op threads (CPU)")
     ap.add_argument("--workers", type=int, default=1, help="data loader worker processes")
+    ap.add_argument("--preload", action="store_true",
+                    help="decode every training image and label once, before the loader workers start "
+                         "(memory: about 1.6 MB per 614x514 pair; saves each worker ~12 ms a sample)")
     ap.add_argument("--photometric", choices=("loader", "device"), default="loader",
                     help="where colour, blur, noise and JPEG are applied: in the loader processes, or batched "
                          "on --device after the transfer (frees GPU-run loaders; same random draws)")
@@ -327,6 +330,14 @@ def main(argv: list[str] | None = None) -> int:
                                       defer_photometric=args.photometric == "device") for d in args.data]
     except ValueError as e:
         raise SystemExit(str(e)) from e
+    if args.preload:
+        t0 = time.perf_counter()
+        try:
+            for ds in train_sets:
+                ds.preload(threads=os.cpu_count() or 1)
+        except (ValueError, OSError) as e:
+            raise SystemExit(f"preload: {e}") from e
+        print(f"preloaded {sum(len(ds) for ds in train_sets)} training pairs in {time.perf_counter() - t0:.1f} s")
     train_ds = EpochIndexed(train_sets)
     val_ds = None
     if args.val_limit:

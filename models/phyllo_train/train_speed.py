@@ -4,8 +4,8 @@
 
 It prints one table: how many augmented samples per second the data pipeline makes in one
 process (what one ``--workers`` process adds), with the photometric ops in it and without
-them (``train --photometric device``), what those ops then cost batched in the training
-process, and the optimiser steps of the network in
+them (``train --photometric device``), and also without decoding PNGs (``--preload``), what
+those ops then cost batched in the training process, and the optimiser steps of the network in
 float32 and under bfloat16 autocast (``train --bf16``) on a fixed batch, alternated so that a
 noisy machine slows both alike. A run is bounded by the slower of the two sides, and on a
 small CPU both share the same cores.
@@ -99,11 +99,14 @@ def main(argv=None) -> None:
     ds = PanopticDataset(args.data, "train", AugmentConfig(crop=args.crop), seed=19)
     deferred = PanopticDataset(args.data, "train", AugmentConfig(crop=args.crop), seed=19, defer_photometric=True)
     torch.set_num_threads(1)
-    rates = {False: [], True: []}
-    for _ in range(2):  # alternated, so a noisy machine slows both alike
-        for defer in (False, True):
-            rates[defer].append(loader_rate(deferred if defer else ds, args.samples // 2))
-    rate, rate_deferred = (statistics.median(rates[k]) for k in (False, True))
+    preloaded = PanopticDataset(args.data, "train", AugmentConfig(crop=args.crop), seed=19, defer_photometric=True)
+    preloaded.preload()
+    kinds = {"all": ds, "deferred": deferred, "preloaded": preloaded}
+    rates: dict[str, list[float]] = {k: [] for k in kinds}
+    for _ in range(2):  # alternated, so a noisy machine slows all alike
+        for k, d in kinds.items():
+            rates[k].append(loader_rate(d, args.samples // 2))
+    rate, rate_deferred, rate_preloaded = (statistics.median(rates[k]) for k in kinds)
     torch.set_num_threads(args.threads)
     photometric = statistics.median(device_photometric_times(deferred, args.batch, args.steps))
     times = step_times(ds, args.batch, args.steps)
@@ -116,6 +119,8 @@ def main(argv=None) -> None:
     print(f"| data pipeline, one process (decode, augment, targets) | {1000 / rate:.0f} | {rate:.2f} | |")
     print(f"| data pipeline without photometric ops (`--photometric device`) | {1000 / rate_deferred:.0f} | "
           f"{rate_deferred:.2f} | |")
+    print(f"| the same, images decoded once beforehand (`--preload`) | {1000 / rate_preloaded:.0f} | "
+          f"{rate_preloaded:.2f} | |")
     print(f"| photometric ops batched in the training process, {args.threads} threads | "
           f"{1000 * photometric / args.batch:.0f} | {args.batch / photometric:.2f} | |")
     print(f"| optimiser step, float32 | {1000 * fp32 / args.batch:.0f} | {args.batch / fp32:.2f} | 1.00 |")

@@ -32,3 +32,23 @@ def test_epoch_indexed_addresses_each_set_and_seeds_by_epoch(tiny_dataset, contr
         torch.testing.assert_close(joined[(epoch, 1)][0], ref_a[1][0])
         torch.testing.assert_close(joined[(epoch, 2)][0], ref_b[0][0])
     assert not torch.equal(joined[(0, 2)][0], joined[(1, 2)][0])  # the epoch changes the augmentation
+
+
+def test_preloaded_samples_are_the_samples_read_from_disk(tiny_dataset, contract, tmp_path):
+    from phyllo_train import train
+
+    cfg = AugmentConfig(crop=64)
+    disk = PanopticDataset(tiny_dataset, "train", cfg, contract, seed=2)
+    memory = PanopticDataset(tiny_dataset, "train", cfg, contract, seed=2)
+    memory.preload(threads=2)
+    assert memory.decoded is not None and len(memory.decoded) == len(disk)
+    for i in range(len(disk)):
+        x, t = disk[i]
+        y, u = memory[i]
+        torch.testing.assert_close(x, y)
+        for k in t:
+            torch.testing.assert_close(t[k], u[k])
+    run = tmp_path / "pre"
+    assert train.main(["--data", str(tiny_dataset), "--out", str(run), "--crop", "64", "--batch", "2",
+                       "--workers", "1", "--val-limit", "0", "--steps", "2", "--warmup", "1", "--preload"]) == 0
+    assert (run / "last.pt").exists()

@@ -114,6 +114,7 @@ def test_train_speed_prints_its_table(tiny_dataset, capsys):
     out = capsys.readouterr().out
     assert "| data pipeline, one process" in out
     assert "| data pipeline without photometric ops" in out and "| photometric ops batched" in out
+    assert "| the same, images decoded once beforehand" in out
     assert "| optimiser step, float32 |" in out and "| 1.00 |" in out
     assert "| optimiser step, bfloat16 autocast |" in out
 
