@@ -68,6 +68,7 @@ device-prepare: ready. Call the device tool's run with carry [".device"], timeou
     GEN_ARGS="--dead-remnants 0.5 --max-age 84 --max-leaves 16" \\
     RUNS="$runs" \\
     bash scripts/device-train.sh
+Then, here: scripts/score-device-run.sh DIR (DIR: where the call's files were copied).
 (One run with every worker; photometric ops on the GPU by default. Starting from
 a wider export, give RUNS without --width/--dec/--ins-width: train takes them from init.pt.)
 EOF
