@@ -16,6 +16,9 @@ import numpy as np
 from PIL import Image, ImageFilter
 
 
+LUMA = (0.299, 0.587, 0.114)  # Rec. 601 luma weights (also JPEG's Y)
+
+
 @dataclass
 class AugmentConfig:
     """Knobs of the augmentation; defaults are the training recipe."""
@@ -178,7 +181,7 @@ def backlight(x: np.ndarray, plant: np.ndarray, gain: float, desaturate: float) 
     p = np.pad(m, 1, mode="edge")
     h, w = m.shape
     soft = sum(p[dy:dy + h, dx:dx + w] for dy in range(3) for dx in range(3)) / 9.0
-    lum = x @ np.array([0.299, 0.587, 0.114], np.float32)
+    lum = x @ np.array(LUMA, np.float32)
     dark = (lum[..., None] + (x - lum[..., None]) * (1.0 - desaturate)) * gain
     return x + (dark - x) * soft[..., None]
 

@@ -48,10 +48,10 @@ def has_tip_output(path: str | Path, contract: Contract) -> bool:
     return contract.tip_name in [o.name for o in onnx.load(str(path)).graph.output]
 
 
-def architecture_of(path: str | Path, given: dict) -> dict:
-    """``build_model`` keyword arguments for the network in ``path``: its ``phyllo.architecture``
-    metadata, else ``given`` (``width``/``dec``/``ins_width`` as ``train`` takes them; None: default)."""
-    meta = {p.key: p.value for p in onnx.load(str(path), load_external_data=False).metadata_props}
+def architecture_of(path: str | Path, meta: dict[str, str], given: dict) -> dict:
+    """``build_model`` keyword arguments for the network in ``path`` (whose metadata is ``meta``):
+    its ``phyllo.architecture``, else ``given`` (``width``/``dec``/``ins_width`` as ``train`` takes
+    them; None: default)."""
     stamped = meta.get(ARCHITECTURE_KEY)
     if stamped is not None:
         kw = architecture_kwargs(json.loads(stamped))
@@ -232,7 +232,8 @@ def main(argv: list[str] | None = None) -> int:
 
     contract = load_contract(args.contract)
     try:
-        arch = architecture_of(args.onnx, {"width": args.width, "dec": args.dec, "ins_width": args.ins_width})
+        meta = {p.key: p.value for p in onnx.load(str(args.onnx)).metadata_props}
+        arch = architecture_of(args.onnx, meta, {"width": args.width, "dec": args.dec, "ins_width": args.ins_width})
         model = build_model(contract.num_classes, seed=0, **arch)
     except (ValueError, OSError) as e:
         print(f"from_onnx: {e}", file=sys.stderr)
@@ -255,7 +256,6 @@ def main(argv: list[str] | None = None) -> int:
     except AssertionError as e:
         print(f"from_onnx: the rebuilt model does not compute what {args.onnx} does: {e}", file=sys.stderr)
         return 1
-    meta = {p.key: p.value for p in onnx.load(str(args.onnx)).metadata_props}
     if args.head_out is not None:
         if not tip:
             print(f"from_onnx: {args.onnx} has no tip output, so no head for --head-out", file=sys.stderr)

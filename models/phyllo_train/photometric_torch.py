@@ -18,14 +18,12 @@ import math
 import torch
 import torch.nn.functional as F
 
-from .augment import PhotometricDraw
+from .augment import LUMA, PhotometricDraw
 from .contract import Contract
 
 # Columns of PhotometricDraw.to_vector().
 (_BACKLIGHT, _BL_GAIN, _BL_DESAT, _HSV, _HUE, _SAT, _WB_R, _WB_G, _WB_B, _BRIGHT, _CONTRAST, _GRAD_ANGLE,
  _GRAD, _GAMMA, _FR_RY, _FR_RX, _FR_BY, _FR_BX, _BLUR, _NOISE, _NOISE_SEED, _JPEG) = range(PhotometricDraw.FIELDS)
-
-_LUMA = (0.299, 0.587, 0.114)
 
 # ITU T.81 Annex K tables, the base that libjpeg (and so PIL) scales by quality.
 _Q_LUMA = [16, 11, 10, 16, 24, 40, 51, 61, 12, 12, 14, 19, 26, 58, 60, 55, 14, 13, 16, 24, 40, 57, 69, 56,
@@ -73,7 +71,7 @@ def jpeg(x: torch.Tensor, quality: torch.Tensor) -> torch.Tensor:
     if ph or pw:
         x = F.pad(x, (0, pw, 0, ph), mode="replicate")
     r, g, bl = x.unbind(1)
-    y = 0.299 * r + 0.587 * g + 0.114 * bl
+    y = LUMA[0] * r + LUMA[1] * g + LUMA[2] * bl
     cb = -0.168736 * r - 0.331264 * g + 0.5 * bl + 128.0
     cr = 0.5 * r - 0.418688 * g - 0.081312 * bl + 128.0
     y, cb, cr = (c.round().clamp(0, 255) for c in (y, cb, cr))
@@ -143,7 +141,7 @@ def apply_batch(rgb: torch.Tensor, draws: torch.Tensor, plant: torch.Tensor) -> 
     x = rgb.to(torch.float32) / 255.0
     if bool((p[:, _BACKLIGHT] > 0).any()):
         soft = _box3(plant[:, None].to(torch.float32)) * col(_BACKLIGHT)
-        lum = sum(wt * x[:, i:i + 1] for i, wt in enumerate(_LUMA))
+        lum = sum(wt * x[:, i:i + 1] for i, wt in enumerate(LUMA))
         dark = (lum + (x - lum) * (1.0 - col(_BL_DESAT))) * col(_BL_GAIN)
         x = x + (dark - x) * soft
     if bool((p[:, _HSV] > 0).any()):

@@ -98,9 +98,9 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     ds = PanopticDataset(args.data, "train", AugmentConfig(crop=args.crop), seed=19)
     deferred = PanopticDataset(args.data, "train", AugmentConfig(crop=args.crop), seed=19, defer_photometric=True)
-    torch.set_num_threads(1)
     preloaded = PanopticDataset(args.data, "train", AugmentConfig(crop=args.crop), seed=19, defer_photometric=True)
     preloaded.preload()
+    torch.set_num_threads(1)
     kinds = {"all": ds, "deferred": deferred, "preloaded": preloaded}
     rates: dict[str, list[float]] = {k: [] for k in kinds}
     for _ in range(2):  # alternated, so a noisy machine slows all alike
