@@ -446,4 +446,52 @@ mod tests {
         let young = b.at(b.leaves[3].emergence_day + 0.1);
         assert!(young.leaves.iter().filter(|l| l.rank == 3).all(|l| l.kink == 0.0));
     }
+
+    /// Mean number of leaves not yet fully open, and the mean collar height
+    /// of the top open leaf relative to the whole plant's, over plants and
+    /// the ages of the real young maize crops.
+    fn top_of_plant(preset: &str) -> (f32, f32) {
+        let preset = Preset::load(preset).unwrap();
+        let (mut opening, mut collar_share, mut n) = (0.0, 0.0, 0.0);
+        for seed in 0..24 {
+            let traits = PlantTraits::sample(&preset, seed);
+            for day in [25.0, 32.0, 39.0, 46.0] {
+                let s = traits.at(day);
+                opening += s.leaves.iter().filter(|l| l.furl > 0.0).count() as f32;
+                let open_top = s
+                    .leaves
+                    .iter()
+                    .filter(|l| l.furl == 0.0)
+                    .map(|l| l.base_height)
+                    .fold(0.0, f32::max);
+                let top = s
+                    .leaves
+                    .iter()
+                    .map(|l| l.base_height + l.length)
+                    .fold(0.0, f32::max);
+                collar_share += open_top / top;
+                n += 1.0;
+            }
+        }
+        (opening / n, collar_share / n)
+    }
+
+    #[test]
+    fn the_whorl_preset_has_several_leaves_opening_low_on_a_compact_stem() {
+        let (maize_opening, maize_collars) = top_of_plant("maize");
+        let (whorl_opening, whorl_collars) = top_of_plant("maize-whorl");
+        // Real young maize shows two to four leaves rising out of the whorl.
+        assert!(
+            (2.0..=4.0).contains(&whorl_opening),
+            "{whorl_opening} leaves opening"
+        );
+        assert!(
+            whorl_opening > maize_opening + 0.8,
+            "{whorl_opening} vs maize {maize_opening}"
+        );
+        assert!(
+            whorl_collars < maize_collars,
+            "collars at {whorl_collars} of the height vs maize {maize_collars}"
+        );
+    }
 }

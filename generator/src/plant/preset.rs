@@ -215,6 +215,7 @@ const BUILTIN: &[(&str, &str)] = &[
     ("pawaga", include_str!("../../presets/pawaga.toml")),
     ("maize", include_str!("../../presets/maize.toml")),
     ("maize-late", include_str!("../../presets/maize-late.toml")),
+    ("maize-whorl", include_str!("../../presets/maize-whorl.toml")),
 ];
 
 impl Preset {
