@@ -64,11 +64,13 @@ du -sh .device | sed 's/^/device-prepare: carry /'
 cat <<EOF
 device-prepare: ready. Call the device tool's run with carry [".device"], timeout_s 590, and e.g.
   MINUTES=6 STEPS=100000 VAL_EVERY=500 PLANTS=2400 SHARDS=16 GEN_SECONDS=90 WORKERS=14 BATCH=$batch CROP=$crop \\
-    PRESETS=btx623,pawaga,rtx430,sc301,tx3197,maize:1.7,maize-late:2 \\
+    PRESETS=btx623,pawaga,rtx430,sc301,tx3197,maize:1.7,maize-late:2,maize-whorl:1.5 \\
     GEN_ARGS="--dead-remnants 0.5 --max-age 84 --max-leaves 16" \\
     RUNS="$runs" \\
     bash scripts/device-train.sh
 Then, here: scripts/score-device-run.sh DIR (DIR: where the call's files were copied).
+(maize-whorl: young maize with the real plants' crowded tops, which s10 counts
+44.0 % exact against 55.2 % on calib-s700001; models/EXPERIMENTS.md, "Crowded maize tops".)
 (One run with every worker; photometric ops on the GPU by default. Starting from
 a wider export, give RUNS without --width/--dec/--ins-width: train takes them from init.pt.)
 EOF

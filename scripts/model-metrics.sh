@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The model card's headline table for one model: the withheld synthetic
 # frames, the real full frames and the real crops, one row each, then the
-# synthetic calibration sets that are on disk (calib-s700001 and
-# calib-s700003-late, the season-wide one, under $CALIB_ROOT).
+# synthetic calibration sets that are on disk (calib-s700001,
+# calib-s700003-late, the season-wide one, and whorl-s700005, young maize
+# with crowded tops, under $CALIB_ROOT).
 # Usage: scripts/model-metrics.sh [MODEL] [TEST_DATASET]
 #   MODEL         default models/phyllo.onnx
 #   TEST_DATASET  default /work/data/test-s900002 (scripts/make-eval-sets.sh
@@ -35,7 +36,7 @@ row() { # label, key in models/eval-sets.tsv, then phyllo eval arguments
 row "synthetic frames, $(basename "$test")" "$(basename "$test")/val" --dataset "$test" --split val
 row "real full frames" real-frames --counts "$dev/leaf_tips.csv" --images "$dev/images"
 row "real crops" real-crops --counts "$dev/crops_counts.csv" --images "$dev/crops"
-for set in ${CALIB_SETS-calib-s700001 calib-s700003-late}; do
+for set in ${CALIB_SETS-calib-s700001 calib-s700003-late whorl-s700005}; do
   if [ -e "${CALIB_ROOT:-/work/data}/$set/manifest.jsonl" ]; then
     row "$set (calibration only)" "$set/all" --dataset "${CALIB_ROOT:-/work/data}/$set" --split all
   else

@@ -7,7 +7,8 @@
 # against the shipped model at its own threshold, with the sign test.
 # Then the real frames and crops for each export at each threshold.
 # Usage: scripts/score-device-run.sh DIR_OR_ONNX...
-# Environment: SETS ["/work/data/calib-s700001 /work/data/calib-s700003-late";
+# Environment: SETS ["/work/data/calib-s700001 /work/data/calib-s700003-late
+#   /work/data/whorl-s700005";
 #   scripts/make-eval-sets.sh renders them], THRESHOLDS ["0.3 0.2"],
 #   BASE [models/phyllo.onnx], PHYLLO_DEV_DATA [../shared/data/unl-maize-dev].
 set -euo pipefail
@@ -24,7 +25,7 @@ for arg in "$@"; do
   fi
 done
 cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
-for set in ${SETS:-/work/data/calib-s700001 /work/data/calib-s700003-late}; do
+for set in ${SETS:-/work/data/calib-s700001 /work/data/calib-s700003-late /work/data/whorl-s700005}; do
   [ -e "$set/manifest.jsonl" ] || { echo "== $set: not on disk (scripts/make-eval-sets.sh NAME renders it)"; continue; }
   for m in "${models[@]}"; do
     for t in ${THRESHOLDS:-0.3 0.2}; do

@@ -169,6 +169,20 @@ def forward_losses(model: torch.nn.Module, xs: torch.Tensor, ts: dict[str, torch
     return out, loss, parts
 
 
+def cpu_has_bf16(cpuinfo: str | None = None) -> bool | None:
+    """Whether this CPU has bfloat16 instructions (AVX512-BF16 or AMX), from ``/proc/cpuinfo``
+    (or the text given); None where that cannot be read."""
+    if cpuinfo is None:
+        try:
+            cpuinfo = Path("/proc/cpuinfo").read_text()
+        except OSError:
+            return None
+    flags = {f for line in cpuinfo.splitlines() if line.startswith("flags") for f in line.split(":", 1)[-1].split()}
+    if not flags:
+        return None
+    return bool(flags & {"avx512_bf16", "amx_bf16"})
+
+
 def set_train_mode(model: torch.nn.Module, freeze_bn: bool) -> None:
     """Training mode; with ``freeze_bn`` every BatchNorm stays in eval mode (running statistics, no updates)."""
     model.train()
@@ -318,6 +332,11 @@ def main(argv: list[str] | None = None) -> int:
     device = torch.device(args.device)
     if device.type == "cpu":
         torch.set_num_threads(args.threads)
+        if args.bf16 and cpu_has_bf16() is False:
+            # Without these instructions autocast emulates bfloat16: session 26 measured
+            # it several times slower than float32 (models/EXPERIMENTS.md, "Crowded maize tops").
+            print("warning: --bf16 on a CPU without AVX512-BF16 or AMX runs slower than float32",
+                  file=sys.stderr)
     args.out.mkdir(parents=True, exist_ok=True)
 
     aug = with_noise_args(AugmentConfig(crop=args.crop or None), args)

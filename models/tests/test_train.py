@@ -131,3 +131,11 @@ def test_wall_clock_budget_drives_the_schedule_and_ends_the_run(tiny_dataset, tm
     assert train.main(args) == 0
     ck = torch.load(run / "last.pt", map_location="cpu", weights_only=False)
     assert 1 <= ck["step"] < 100000  # ended by the 60 ms budget, not the step count
+
+
+def test_cpu_bf16_support_is_read_from_the_cpu_flags():
+    amd = "processor\t: 0\nflags\t\t: fpu sse2 avx2 fma\n"
+    sapphire = "processor\t: 0\nflags\t\t: fpu avx2 avx512f avx512_bf16 amx_bf16\n"
+    assert train.cpu_has_bf16(amd) is False
+    assert train.cpu_has_bf16(sapphire) is True
+    assert train.cpu_has_bf16("no flags line here") is None
