@@ -334,7 +334,7 @@ def main(argv: list[str] | None = None) -> int:
         torch.set_num_threads(args.threads)
         if args.bf16 and cpu_has_bf16() is False:
             # Without these instructions autocast emulates bfloat16: session 26 measured
-            # it several times slower than float32 (models/EXPERIMENTS.md, "Crowded maize tops").
+            # it twelve times slower than float32 (models/EXPERIMENTS.md, "Crowded maize tops").
             print("warning: --bf16 on a CPU without AVX512-BF16 or AMX runs slower than float32",
                   file=sys.stderr)
     args.out.mkdir(parents=True, exist_ok=True)

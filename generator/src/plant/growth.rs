@@ -448,8 +448,8 @@ mod tests {
     }
 
     /// Mean number of leaves not yet fully open, and the mean collar height
-    /// of the top open leaf relative to the whole plant's, over plants and
-    /// the ages of the real young maize crops.
+    /// of the top open leaf relative to the whole plant's, over 24 plants
+    /// at 25-46 days.
     fn top_of_plant(preset: &str) -> (f32, f32) {
         let preset = Preset::load(preset).unwrap();
         let (mut opening, mut collar_share, mut n) = (0.0, 0.0, 0.0);
