@@ -319,10 +319,23 @@ def photometric(img: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
 def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
             top_view: bool = False, label_divisor: int = 1000,
             zoom: tuple[int, float] = (0, 1.0), points: np.ndarray | None = None,
-            draw: list | None = None) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int], np.ndarray]:
-    """Augment an RGB PIL image and its (H, W) label.
+            ) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int], np.ndarray]:
+    """Augment an RGB PIL image and its (H, W) label: :func:`augment_geometry`, then the
+    photometric ops drawn next from the same ``rng``.
 
-    Returns ``(rgb, label, window, points)``: the uint8 crop (size x size x 3), the
+    Returns ``(rgb, label, window, points)`` as :func:`augment_geometry` does.
+    """
+    arr, label, window, pts, plant = augment_geometry(img, label, cfg, rng, top_view, label_divisor, zoom, points)
+    return apply_photometric(arr, draw_photometric(cfg, rng), plant), label, window, pts
+
+
+def augment_geometry(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator,
+                     top_view: bool = False, label_divisor: int = 1000,
+                     zoom: tuple[int, float] = (0, 1.0), points: np.ndarray | None = None,
+                     ) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int], np.ndarray, np.ndarray]:
+    """The geometric half of :func:`augment`: zoom, scale, flips, padding and the crop.
+
+    Returns ``(rgb, label, window, points, plant)``: the uint8 crop (size x size x 3) as rendered, the
     *whole* geometrically transformed label, the crop window
     ``(y0, x0, h, w)`` within it, and ``points`` ((K, 2) ``(x, y)``, pixel
     (i, j) spanning [i, i+1) x [j, j+1); leaf tips) moved with the label
@@ -330,9 +343,8 @@ def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.ran
     that instances cut by the crop keep the centre of the whole instance, as
     the daemon's tile stitching expects. ``zoom`` is the contract's
     ``(zoom_plant_height, max_zoom)``: a small plant is enlarged as the
-    daemon enlarges it, before the scale jitter. Given a ``draw`` list, the
-    photometric ops are not applied: their :class:`PhotometricDraw` and the
-    crop's plant mask are appended to it, and ``rgb`` is the crop as rendered.
+    daemon enlarges it, before the scale jitter. Last comes the crop's plant
+    mask (bool, leaf, stem or panicle), which the backlight op reads.
     """
     lo, hi = cfg.scale
     f = float(np.exp(rng.uniform(np.log(lo), np.log(hi)))) if hi > lo else 1.0
@@ -363,9 +375,4 @@ def augment(img: Image.Image, label: np.ndarray, cfg: AugmentConfig, rng: np.ran
     y0, x0 = _crop_origin(label, size, rng, cfg.fg_crop)
     plant = label[y0:y0 + size, x0:x0 + size] >= label_divisor  # class >= 1: leaf, stem or panicle
     arr = np.ascontiguousarray(arr[y0:y0 + size, x0:x0 + size])
-    d = draw_photometric(cfg, rng)
-    if draw is None:
-        arr = apply_photometric(arr, d, plant)
-    else:
-        draw.append((d, plant))
-    return arr, np.ascontiguousarray(label), (y0, x0, size, size), pts
+    return arr, np.ascontiguousarray(label), (y0, x0, size, size), pts, plant

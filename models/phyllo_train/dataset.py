@@ -11,7 +11,7 @@ import torch
 from PIL import Image
 from torch.utils.data import Dataset
 
-from .augment import AugmentConfig, augment
+from .augment import AugmentConfig, apply_photometric, augment_geometry, draw_photometric
 from .contract import Contract, load_contract
 from .targets import make_targets, tip_heatmap
 
@@ -155,11 +155,12 @@ class PanopticDataset(Dataset):
             gaps = row.get("leaf_tip_gaps", {})
             tip_items = [(k, v) for k, v in tip_items if gaps.get(k, 0.0) <= self.max_tip_gap]
         tips = np.array([v for _, v in tip_items], np.float64).reshape(-1, 2)
-        draw: list | None = [] if self.defer_photometric else None
-        rgb, label, window, tips = augment(img, label, cfg, rng, top_view=is_top_view(row),
-                                           label_divisor=self.contract.label_divisor,
-                                           zoom=(self.contract.zoom_plant_height, self.contract.max_zoom),
-                                           points=tips, draw=draw)
+        rgb, label, window, tips, plant = augment_geometry(
+            img, label, cfg, rng, top_view=is_top_view(row), label_divisor=self.contract.label_divisor,
+            zoom=(self.contract.zoom_plant_height, self.contract.max_zoom), points=tips)
+        draw = draw_photometric(cfg, rng)
+        if not self.defer_photometric:
+            rgb = apply_photometric(rgb, draw, plant)
         t = make_targets(label, self.contract, window=window, small_center_weight=self.small_center_weight)
         target = {
             "semantic": torch.from_numpy(t.semantic),
@@ -171,9 +172,8 @@ class PanopticDataset(Dataset):
         }
         if self.with_tips:
             target["tip"] = torch.from_numpy(tip_heatmap(tips, window, self.contract.stride, self.contract.tip_sigma))
-        if draw is not None:
-            (d, plant), = draw
-            target["photometric"] = torch.from_numpy(d.to_vector())
+        if self.defer_photometric:
+            target["photometric"] = torch.from_numpy(draw.to_vector())
             target["plant"] = torch.from_numpy(plant)
             return torch.from_numpy(np.ascontiguousarray(rgb.transpose(2, 0, 1))), target
         return torch.from_numpy(normalise(rgb, self.contract)), target
