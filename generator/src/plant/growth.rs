@@ -480,6 +480,11 @@ mod tests {
     fn the_whorl_preset_has_several_leaves_opening_low_on_a_compact_stem() {
         let (maize_opening, maize_collars) = top_of_plant("maize");
         let (whorl_opening, whorl_collars) = top_of_plant("maize-whorl");
+        // Printed for models/EXPERIMENTS.md ("Crowded maize tops"; `-- --nocapture`).
+        eprintln!(
+            "leaves opening: maize {maize_opening:.2}, maize-whorl {whorl_opening:.2}; \
+             top open collar at {maize_collars:.2} vs {whorl_collars:.2} of the plant's height"
+        );
         // Real young maize shows two to four leaves rising out of the whorl.
         assert!(
             (2.0..=4.0).contains(&whorl_opening),
