@@ -6,6 +6,9 @@
 # Usage: scripts/compare-models.sh DATASET MODEL_A MODEL_B [extra phyllo eval args...]
 # ARGS_A and ARGS_B add arguments for one side only, to compare settings of
 # one model: ARGS_B="--zoom-height 480" compare-models.sh D M M
+# A_CACHE=FILE keeps model A's per-image counts in FILE and reads them from
+# there when it exists, so a caller comparing many models against one base
+# counts the base once (scripts/score-device-run.sh).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 usage="usage: compare-models.sh DATASET MODEL_A MODEL_B [phyllo eval args...]"
@@ -18,7 +21,12 @@ cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 # shellcheck disable=SC2086 # ARGS_A and ARGS_B are word lists
-"$bin" eval --threads "${THREADS:-2}" --model "$a" --dataset "$data" --per-image "$@" ${ARGS_A:-} 2>/dev/null >"$tmp/a"
+if [ -n "${A_CACHE:-}" ] && [ -s "$A_CACHE" ]; then
+  cp "$A_CACHE" "$tmp/a"
+else
+  "$bin" eval --threads "${THREADS:-2}" --model "$a" --dataset "$data" --per-image "$@" ${ARGS_A:-} 2>/dev/null >"$tmp/a"
+  [ -z "${A_CACHE:-}" ] || cp "$tmp/a" "$A_CACHE"
+fi
 "$bin" eval --threads "${THREADS:-2}" --model "$b" --dataset "$data" --per-image "$@" ${ARGS_B:-} 2>/dev/null >"$tmp/b"
 python3 - "$tmp/a" "$tmp/b" <<'PY'
 import math, re, sys

@@ -4,7 +4,8 @@
 # each export on each calibration set, at each centre threshold (a
 # fine-tune lowers the centre peaks, so a lower threshold may count better;
 # models/EXPERIMENTS.md, "The centre loss and the count"), image by image
-# against the shipped model at its own threshold, with the sign test.
+# against the shipped model at its own threshold (counted once per set), with
+# the sign test.
 # Then the real frames and crops for each export at each threshold.
 # Usage: scripts/score-device-run.sh DIR_OR_ONNX...
 # Environment: SETS ["/work/data/calib-s700001 /work/data/calib-s700003-late
@@ -25,12 +26,16 @@ for arg in "$@"; do
   fi
 done
 cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
+# The base model is counted once per set, not once per export and threshold.
+cache=$(mktemp -d)
+trap 'rm -rf "$cache"' EXIT
 for set in ${SETS:-/work/data/calib-s700001 /work/data/calib-s700003-late /work/data/whorl-s700005}; do
   [ -e "$set/manifest.jsonl" ] || { echo "== $set: not on disk (scripts/make-eval-sets.sh NAME renders it)"; continue; }
   for m in "${models[@]}"; do
     for t in ${THRESHOLDS:-0.3 0.2}; do
       echo "== $(basename "$set"): $(basename "$base") against $(basename "$m") at centre threshold $t"
-      ARGS_B="--center-threshold $t" "$root/scripts/compare-models.sh" "$set" "$base" "$m" --split all
+      A_CACHE="$cache/base-$(basename "$set").txt" ARGS_B="--center-threshold $t" \
+        "$root/scripts/compare-models.sh" "$set" "$base" "$m" --split all
     done
   done
 done
