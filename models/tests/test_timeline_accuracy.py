@@ -1,0 +1,66 @@
+"""scripts/timeline_accuracy.py: the timeline's scoring against a sequence's truth."""
+
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+_PATH = Path(__file__).resolve().parents[2] / "scripts" / "timeline_accuracy.py"
+_SPEC = importlib.util.spec_from_file_location("timeline_accuracy", _PATH)
+ta = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(ta)
+
+
+def truth_row(plant, date, living, emerged, dates):
+    return {"plant": plant, "date": date, "time": "08:00:00", "age_days": "20",
+            "living_leaves": str(living), "leaves_emerged": str(emerged), "emergence_dates": ";".join(dates)}
+
+
+def test_phyllochron_is_the_least_squares_days_per_leaf():
+    assert ta.phyllochron([(3, "2018-04-10"), (4, "2018-04-13"), (5, "2018-04-16")]) == pytest.approx(3.0)
+    assert ta.phyllochron([(1, "2018-04-10"), (2, "2018-04-12")]) is None
+
+
+def test_count_summary_rounds_a_fractional_count_half_up():
+    # +0.5 rounds to +1 (not exact, within ±1); -0.5 rounds to 0 (exact).
+    assert ta.count_summary([0.5, -0.5]) == "50.0 / 100.0 / 0.500 / +0.000"
+
+
+def test_score_matches_events_by_leaf_number_and_counts_extra_ones():
+    dates = ["2018-04-01", "2018-04-11", "2018-04-13"]
+    truth = [truth_row("P", "2018-04-10", 1, 1, dates), truth_row("P", "2018-04-11", 2, 2, dates),
+             truth_row("P", "2018-04-12", 2, 2, dates), truth_row("P", "2018-04-13", 3, 3, dates)]
+    timeline = [{"plant": "P", "session_start": f"2018-04-{d}T08:00:00.000", "fused": str(f), "living": str(f),
+                 "leaves_emerged": str(f), "phyllochron_days": ph}
+                for d, f, ph in [(10, 1, ""), (11, 1, ""), (12, 2, ""), (13, 4, "1.5")]]
+    events = [{"plant": "P", "leaf": "2", "emerged_at": "2018-04-12T00:00:00.000"},
+              {"plant": "P", "leaf": "4", "emerged_at": "2018-04-13T00:00:00.000"}]
+    fused, living, emerged, date_errs, after, dateable, n_events, spurious, ph = ta.score(truth, timeline, events)
+    assert fused == [0.0, -1.0, 0.0, 1.0]
+    # Leaf 2 came out on the 11th (middle: noon), seen at midnight after it: half a day late.
+    assert date_errs == [pytest.approx(0.5)]
+    assert after == [False]
+    assert (dateable, n_events, spurious) == (2, 2, 1)
+    # Two dateable leaves are too few for a true phyllochron.
+    assert ph == []
+
+
+def test_observations_read_the_facility_names_of_a_sequence(tmp_path):
+    counts = tmp_path / "counts.jsonl"
+    counts.write_text("\n".join(json.dumps({"file": f"/x/{n}", "leaf_count": c}) for n, c in [
+        ("SYN-btx623-001_2018-04-10_08-02-37_Vis_SV_0.png", 7), ("SYN-maize-002_2018-04-11_09-00-05_Vis_TV_90.png", 3)]))
+    assert ta.observations(counts) == [("SYN-btx623-001", "2018-04-10T08:02:37", "SV_0", 7),
+                                       ("SYN-maize-002", "2018-04-11T09:00:05", "TV_90", 3)]
+
+
+def test_score_marks_events_dated_after_the_plant_lost_a_leaf():
+    dates = ["2018-04-01", "2018-04-02", "2018-04-12"]
+    truth = [truth_row("P", "2018-04-11", 2, 2, dates), truth_row("P", "2018-04-12", 2, 3, dates)]
+    timeline = [{"plant": "P", "session_start": f"2018-04-{d}T08:00:00.000", "fused": "2", "living": "2",
+                 "leaves_emerged": str(e), "phyllochron_days": ""} for d, e in [(11, 2), (12, 3)]]
+    events = [{"plant": "P", "leaf": "3", "emerged_at": "2018-04-12T00:00:00.000"}]
+    _, _, emerged, date_errs, after, *_ = ta.score(truth, timeline, events)
+    assert emerged == [0.0, 0.0]
+    assert date_errs == [pytest.approx(-0.5)]
+    assert after == [True]

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Measures what a breeder reads off the timeline, with the model in the loop:
+# renders a growth sequence (phyllo-gen sequence: every plant imaged daily
+# from five side views and the top), counts every frame with the model,
+# feeds the counts through `phyllo import` (the daemon's view fusion,
+# isotonic fit and emergence events) once per fusion rule, and compares the
+# exported timeline with the generator's truth.csv. A last row imports the
+# true living-leaf counts instead of the model's, so the timeline's own error
+# shows apart from the model's.
+# Usage: scripts/timeline-accuracy.sh [SEQUENCE_DIR]
+# Environment: PLANTS [36], DAYS [30], START_AGE [14], SEED [800001] (the
+#   sequence, rendered only when SEQUENCE_DIR has no truth.csv; a partial
+#   render resumes), MODEL [models/phyllo.onnx], THREADS [2],
+#   RULES ["max-side median-side mean-side max view:SV_108"].
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+plants=${PLANTS:-36}
+days=${DAYS:-30}
+start_age=${START_AGE:-14}
+seed=${SEED:-800001}
+dir=${1:-/work/data/seq-s$seed}
+model=${MODEL:-$root/models/phyllo.onnx}
+cargo build -q --release -p phyllo -p phyllo-gen --manifest-path "$root/Cargo.toml"
+bin=$root/target/release
+if [ ! -e "$dir/truth.csv" ]; then
+  "$bin/phyllo-gen" sequence --out "$dir" --plants "$plants" --days "$days" --start-age "$start_age" \
+    --seed "$seed" --quiet
+fi
+# Counts are kept per model file, so a rerun only counts what is new.
+counts=$dir/counts-$(sha256sum "$model" | cut -c1-12).jsonl
+frames=$(find "$dir" -maxdepth 1 -name '*.png' | wc -l)
+if [ ! -s "$counts" ] || [ "$(wc -l <"$counts")" -ne "$frames" ]; then
+  echo "counting $frames frames of $dir with $(basename "$model")" >&2
+  find "$dir" -maxdepth 1 -name '*.png' -print0 | sort -z |
+    xargs -0 "$bin/phyllo" count --threads "${THREADS:-2}" --model "$model" --json >"$counts.part"
+  mv "$counts.part" "$counts"
+fi
+python3 "$root/scripts/timeline_accuracy.py" --phyllo "$bin/phyllo" --sequence "$dir" --counts "$counts" \
+  --rules ${RULES:-max-side median-side mean-side max view:SV_108}

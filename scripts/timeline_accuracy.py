@@ -1,0 +1,173 @@
+"""Scores the daemon's timeline against a growth sequence's truth.csv.
+
+Called by scripts/timeline-accuracy.sh with the model's counts of every
+frame (`phyllo count --json` lines). For each view-fusion rule the counts go
+through `phyllo import` into a fresh SQLite store, the timeline and events
+are exported, and every plant-day is compared with the generator's truth;
+then the same with the true living-leaf counts imported instead (the
+timeline's own error). Standard library only.
+"""
+
+import argparse
+import csv
+import datetime as dt
+import json
+import math
+import os
+import re
+import subprocess
+import tempfile
+
+NAME = re.compile(r"^(?P<plant>[^_]+)_(?P<date>\d{4}-\d\d-\d\d)_(?P<time>\d\d-\d\d-\d\d)_Vis_(?P<view>[ST]V_\d+)\.png$")
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def observations(counts_path):
+    """(plant, ISO timestamp, view, count) per counted frame of the sequence."""
+    rows = []
+    for line in open(counts_path):
+        r = json.loads(line)
+        m = NAME.match(os.path.basename(r["file"]))
+        if m is None:
+            raise SystemExit(f"{r['file']}: not a phyllo-gen sequence frame name")
+        ts = f"{m['date']}T{m['time'].replace('-', ':')}"
+        rows.append((m["plant"], ts, m["view"], r["leaf_count"]))
+    return rows
+
+
+def truth_observations(truth):
+    """The true living-leaf count as the day's only view: the model taken out."""
+    return [(t["plant"], f"{t['date']}T{t['time']}", "SV_108", int(t["living_leaves"])) for t in truth]
+
+
+def run_timeline(phyllo, obs, rule, work):
+    """Imports `obs` under fusion `rule` into a new store; returns (timeline, events) rows."""
+    os.makedirs(work)
+    cfg = os.path.join(work, "phyllo.toml")
+    with open(cfg, "w") as f:
+        f.write(f'drop_dir = "{work}/drop"\ndatabase = "{work}/db.sqlite"\n[timeline]\nfusion = "{rule}"\n')
+    obs_csv = os.path.join(work, "obs.csv")
+    with open(obs_csv, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["plant", "timestamp", "view", "leaf_count"])
+        w.writerows(obs)
+    subprocess.run([phyllo, "import", "-c", cfg, obs_csv], check=True, capture_output=True)
+    out = {}
+    for what in ("timeline", "events"):
+        path = os.path.join(work, f"{what}.csv")
+        subprocess.run([phyllo, "export", "-c", cfg, "--what", what, "--out", path], check=True, capture_output=True)
+        out[what] = read_csv(path)
+    return out["timeline"], out["events"]
+
+
+def days_from_mid(day, when):
+    """Days from the middle of `day` (truth.csv dates an emergence to the day) to timestamp `when`."""
+    a = dt.datetime.fromisoformat(day) + dt.timedelta(hours=12)
+    return (dt.datetime.fromisoformat(when[:19]) - a).total_seconds() / 86400
+
+
+def score(truth, timeline, events):
+    """Per plant-day count errors and per leaf emergence-date errors."""
+    by_day = {(r["plant"], r["session_start"][:10]): r for r in timeline}
+    fused, living, emerged = [], [], []
+    for t in truth:
+        r = by_day.get((t["plant"], t["date"]))
+        if r is None:
+            raise SystemExit(f"no timeline row for {t['plant']} on {t['date']}")
+        fused.append(float(r["fused"]) - int(t["living_leaves"]))
+        living.append(float(r["living"]) - int(t["living_leaves"]))
+        emerged.append(float(r["leaves_emerged"]) - int(t["leaves_emerged"]))
+    date_errs, after_death, dateable, spurious, phyllochron_errs = [], [], 0, 0, []
+    lost = {(t["plant"], t["date"]): int(t["living_leaves"]) < int(t["leaves_emerged"]) for t in truth}
+    for plant in sorted({t["plant"] for t in truth}):
+        rows = [t for t in truth if t["plant"] == plant]
+        first, dates = rows[0]["date"], [d for d in rows[-1]["emergence_dates"].split(";") if d]
+        # Leaves out before the first imaging day cannot be dated from the images.
+        dateable += sum(d > first for d in dates)
+        for e in events:
+            k = int(e["leaf"])
+            if e["plant"] != plant:
+                continue
+            if k <= len(dates):
+                date_errs.append(days_from_mid(dates[k - 1], e["emerged_at"]))
+                # Counts of living leaves cannot number a new leaf right once an old one has died.
+                after_death.append(lost.get((plant, e["emerged_at"][:10]), False))
+            else:
+                spurious += 1
+        true_rate = phyllochron([(k + 1, d) for k, d in enumerate(dates) if d > first])
+        last = [r for r in timeline if r["plant"] == plant][-1]
+        if true_rate is not None and last["phyllochron_days"]:
+            phyllochron_errs.append(float(last["phyllochron_days"]) - true_rate)
+    return fused, living, emerged, date_errs, after_death, dateable, len(events), spurious, phyllochron_errs
+
+
+def phyllochron(leaf_dates):
+    """Least-squares days per leaf over (leaf number, date) pairs; None under three leaves."""
+    if len(leaf_dates) < 3:
+        return None
+    xs = [k for k, _ in leaf_dates]
+    ys = [dt.date.fromisoformat(d).toordinal() for _, d in leaf_dates]
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    sxx = sum((x - mx) ** 2 for x in xs)
+    return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sxx
+
+
+def count_summary(errs):
+    n = len(errs)
+    # Truth is whole, so rounding the error half up rounds a fractional fused count half up.
+    rounded = [math.floor(e + 0.5) for e in errs]
+    exact = sum(e == 0 for e in rounded) / n
+    within1 = sum(abs(e) <= 1 for e in rounded) / n
+    rmse = math.sqrt(sum(e * e for e in errs) / n)
+    return f"{100 * exact:.1f} / {100 * within1:.1f} / {rmse:.3f} / {sum(errs) / n:+.3f}"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--phyllo", required=True)
+    ap.add_argument("--sequence", required=True)
+    ap.add_argument("--counts", required=True)
+    ap.add_argument("--rules", nargs="+", required=True)
+    a = ap.parse_args()
+    truth = read_csv(os.path.join(a.sequence, "truth.csv"))
+    obs = observations(a.counts)
+    plants, days = len({t["plant"] for t in truth}), len({t["date"] for t in truth})
+    ages = sorted(float(t["age_days"]) for t in truth)
+    models = sorted({json.loads(line)["model"] for line in open(a.counts)})
+    print(f"sequence {a.sequence}: {plants} plants x {days} days, ages {ages[0]:g}-{ages[-1]:g} d, {len(obs)} frames; model {', '.join(models)}")
+    print("plant-days: exact / within ±1 / RMSE / bias against the true living leaves (rounded; the top view fused only by `max`)")
+    print("events: emergence events exported, truth leaves that emerged after the first imaging day, events matched")
+    print("to a truth leaf by number (the rest name a leaf the plant never had); dates in days from the true day's middle;")
+    print("phyllochron: the timeline's days per leaf against the truth's (least squares over the dateable leaves), per plant")
+    print("date MAE split: events before the plant lost its first leaf / after (n)")
+    print("| counts | fusion | fused count | living leaves (smoothed) | leaves emerged | events | dateable | matched | extra | date MAE (d) | bias (d) | within 1 d | date MAE before / after a leaf died (n) | phyllochron MAE / bias (d, plants) |")
+    print("|---|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|")
+    runs = [("model", r, obs) for r in a.rules] + [("truth", "max-side", truth_observations(truth))]
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, (source, rule, o) in enumerate(runs):
+            timeline, events = run_timeline(a.phyllo, o, rule, os.path.join(tmp, str(i)))
+            fused, living, emerged, errs, after, dateable, n_events, spurious, ph = score(truth, timeline, events)
+            n = max(len(errs), 1)
+            mae = sum(abs(e) for e in errs) / n
+            bias = sum(errs) / n
+            within = 100 * sum(abs(e) <= 1 for e in errs) / n
+            m = max(len(ph), 1)
+            ph_text = f"{sum(abs(e) for e in ph) / m:.2f} / {sum(ph) / m:+.2f} ({len(ph)})"
+            split = [[abs(e) for e, a in zip(errs, after) if a == side] for side in (False, True)]
+            split_text = " / ".join(f"{sum(x) / max(len(x), 1):.2f} ({len(x)})" for x in split)
+            print(f"| {source} | {rule} | {count_summary(fused)} | {count_summary(living)} | {count_summary(emerged)} | "
+                  f"{n_events} | {dateable} | {n_events - spurious} | {spurious} | {mae:.2f} | {bias:+.2f} | {within:.0f} % | {split_text} | {ph_text} |")
+    # One view alone, as a person counts (SV_108), against the same truth.
+    truth_by = {(t["plant"], t["date"]): int(t["living_leaves"]) for t in truth}
+    for view in ("SV_108", "TV_90"):
+        errs = [c - truth_by[(p, ts[:10])] for p, ts, v, c in obs if v == view]
+        if errs:
+            print(f"single view {view}, unfused, against the true living leaves: {count_summary(errs)} ({len(errs)} frames)")
+
+
+if __name__ == "__main__":
+    main()
