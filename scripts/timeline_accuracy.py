@@ -11,6 +11,7 @@ timeline's own error). Standard library only.
 import argparse
 import csv
 import datetime as dt
+import hashlib
 import json
 import math
 import os
@@ -19,6 +20,16 @@ import subprocess
 import tempfile
 
 NAME = re.compile(r"^(?P<plant>[^_]+)_(?P<date>\d{4}-\d\d-\d\d)_(?P<time>\d\d-\d\d-\d\d)_Vis_(?P<view>[ST]V_\d+)\.png$")
+
+
+def fingerprint(sequence, frames):
+    """SHA-256 over truth.csv and every frame's name and bytes: says whether two runs scored the same renders."""
+    h = hashlib.sha256()
+    for name in ["truth.csv"] + sorted(frames):
+        h.update(name.encode() + b"\0")
+        with open(os.path.join(sequence, name), "rb") as f:
+            h.update(hashlib.sha256(f.read()).digest())
+    return h.hexdigest()[:16]
 
 
 def read_csv(path):
@@ -116,6 +127,33 @@ def phyllochron(leaf_dates):
     return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sxx
 
 
+def age_bands(truth, timeline, width=10):
+    """Fused-count errors grouped by plant age in bands of `width` days."""
+    by_day = {(r["plant"], r["session_start"][:10]): float(r["fused"]) for r in timeline}
+    bands = {}
+    for t in truth:
+        age = float(t["age_days"])
+        lo = int(age // width * width)
+        bands.setdefault(lo, []).append(by_day[(t["plant"], t["date"])] - int(t["living_leaves"]))
+    return [(f"ages {lo}-{lo + width - 1} d", bands[lo]) for lo in sorted(bands)]
+
+
+def plant_squared_errors(truth, timeline):
+    """Per plant, the sum over its days of the squared fused-count error."""
+    by_day = {(r["plant"], r["session_start"][:10]): float(r["fused"]) for r in timeline}
+    out = {}
+    for t in truth:
+        e = by_day[(t["plant"], t["date"])] - int(t["living_leaves"])
+        out[t["plant"]] = out.get(t["plant"], 0.0) + e * e
+    return out
+
+
+def sign_test(wins_a, wins_b):
+    """Two-sided sign test p over the plants one side wins (ties dropped)."""
+    n, k = wins_a + wins_b, min(wins_a, wins_b)
+    return min(1.0, 2 * sum(math.comb(n, i) for i in range(k + 1)) / 2**n) if n else 1.0
+
+
 def count_summary(errs):
     n = len(errs)
     # Truth is whole, so rounding the error half up rounds a fractional fused count half up.
@@ -138,7 +176,9 @@ def main():
     plants, days = len({t["plant"] for t in truth}), len({t["date"] for t in truth})
     ages = sorted(float(t["age_days"]) for t in truth)
     models = sorted({json.loads(line)["model"] for line in open(a.counts)})
-    print(f"sequence {a.sequence}: {plants} plants x {days} days, ages {ages[0]:g}-{ages[-1]:g} d, {len(obs)} frames; model {', '.join(models)}")
+    frames = [os.path.basename(json.loads(line)["file"]) for line in open(a.counts)]
+    print(f"sequence {a.sequence}: {plants} plants x {days} days, ages {ages[0]:g}-{ages[-1]:g} d, {len(obs)} frames "
+          f"(data {fingerprint(a.sequence, frames)}); model {', '.join(models)}")
     print("plant-days: exact / within ±1 / RMSE / bias against the true living leaves (rounded; the top view fused only by `max`)")
     print("events: emergence events exported, truth leaves that emerged after the first imaging day, events matched")
     print("to a truth leaf by number (the rest name a leaf the plant never had); dates in days from the true day's middle;")
@@ -146,10 +186,15 @@ def main():
     print("date MAE split: events before the plant lost its first leaf / after (n)")
     print("| counts | fusion | fused count | living leaves (smoothed) | leaves emerged | events | dateable | matched | extra | date MAE (d) | bias (d) | within 1 d | date MAE before / after a leaf died (n) | phyllochron MAE / bias (d, plants) |")
     print("|---|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|")
-    runs = [("model", r, obs) for r in a.rules] + [("truth", "max-side", truth_observations(truth))]
+    runs = [("model", r, obs) for r in a.rules] + [("truth", a.rules[0], truth_observations(truth))]
+    by_age, per_plant = None, []
     with tempfile.TemporaryDirectory() as tmp:
         for i, (source, rule, o) in enumerate(runs):
             timeline, events = run_timeline(a.phyllo, o, rule, os.path.join(tmp, str(i)))
+            if i == 0:
+                by_age = age_bands(truth, timeline)
+            if i < 2:
+                per_plant.append(plant_squared_errors(truth, timeline))
             fused, living, emerged, errs, after, dateable, n_events, spurious, ph = score(truth, timeline, events)
             n = max(len(errs), 1)
             mae = sum(abs(e) for e in errs) / n
@@ -161,6 +206,15 @@ def main():
             split_text = " / ".join(f"{sum(x) / max(len(x), 1):.2f} ({len(x)})" for x in split)
             print(f"| {source} | {rule} | {count_summary(fused)} | {count_summary(living)} | {count_summary(emerged)} | "
                   f"{n_events} | {dateable} | {n_events - spurious} | {spurious} | {mae:.2f} | {bias:+.2f} | {within:.0f} % | {split_text} | {ph_text} |")
+    if len(a.rules) > 1:
+        (ra, ea), (rb, eb) = zip(a.rules[:2], per_plant)
+        wa = sum(ea[p] < eb[p] for p in ea)
+        wb = sum(eb[p] < ea[p] for p in ea)
+        print(f"fused count closer to the truth per plant (squared error over its days): {ra} on {wa} plants, "
+              f"{rb} on {wb}; sign test p = {sign_test(wa, wb):.3f}")
+    print(f"fused count by plant age, {a.rules[0]}:")
+    for band, errs in by_age:
+        print(f"  {band}: {count_summary(errs)} ({len(errs)} plant-days)")
     # One view alone, as a person counts (SV_108), against the same truth.
     truth_by = {(t["plant"], t["date"]): int(t["living_leaves"]) for t in truth}
     for view in ("SV_108", "TV_90"):

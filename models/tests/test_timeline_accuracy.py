@@ -64,3 +64,11 @@ def test_score_marks_events_dated_after_the_plant_lost_a_leaf():
     assert emerged == [0.0, 0.0]
     assert date_errs == [pytest.approx(-0.5)]
     assert after == [True]
+
+
+def test_sign_test_and_plant_errors():
+    assert ta.sign_test(26, 9) == pytest.approx(0.0060, abs=5e-4)
+    assert ta.sign_test(0, 0) == 1.0
+    truth = [truth_row("P", f"2018-04-1{d}", 3, 3, []) for d in (0, 1)]
+    timeline = [{"plant": "P", "session_start": f"2018-04-1{d}T08:00:00.000", "fused": f} for d, f in ((0, "4"), (1, "1"))]
+    assert ta.plant_squared_errors(truth, timeline) == {"P": 5.0}

@@ -160,12 +160,24 @@ impl Store {
         conn.pragma_update(None, "synchronous", "NORMAL")?;
         conn.pragma_update(None, "foreign_keys", "ON")?;
         migrations::migrate(&mut conn).with_context(|| format!("database {}", path.display()))?;
-        Ok(Store {
+        let mut store = Store {
             conn,
             params: TimelineParams::from_config(tl)?,
             fusion_name: tl.fusion.clone(),
             max_attempts,
-        })
+        };
+        // A changed fusion rule (in the config, or a new default after an upgrade)
+        // would otherwise leave plants that get no new image fused the old way.
+        let stale: bool = store.conn.query_row(
+            "SELECT EXISTS(SELECT 1 FROM sessions WHERE fusion_rule <> ?1)",
+            [&tl.fusion],
+            |r| r.get(0),
+        )?;
+        if stale {
+            let plants = store.recompute_all()?;
+            tracing::info!(plants, rule = %tl.fusion, "view fusion rule changed: every timeline refitted");
+        }
+        Ok(store)
     }
 
     /// Opens an existing database read-only (tail, status, export, timeline).

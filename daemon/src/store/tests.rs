@@ -322,7 +322,7 @@ fn import_is_fused_like_model_counts_and_idempotent() {
     assert_eq!(s.image_counts().unwrap().imported, 3);
     let t = s.plant_timeline("P1").unwrap().unwrap();
     assert_eq!(t.sessions.len(), 2);
-    assert_eq!(t.sessions[0].fused, 9.0); // max of model 8 and manual 9
+    assert_eq!(t.sessions[0].fused, 8.5); // median of model 8 and manual 9
     assert_eq!(t.events.len(), 2); // leaves 10, 11
 }
 
@@ -378,6 +378,14 @@ fn recompute_all_applies_a_new_fusion_rule() {
         ..TimelineConfig::default()
     };
     let mut s = Store::open(&db(&dir), &tl, 3).unwrap();
+    // Opening with another rule refits at once, so no plant keeps the old fusion.
+    let first = s.plant_timeline("P1").unwrap().unwrap().sessions[0].clone();
+    assert_eq!(first.fused, 7.0);
+    let rule: String = s
+        .conn()
+        .query_row("SELECT fusion_rule FROM sessions", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!(rule, "view:SV_0");
     assert_eq!(s.recompute_all().unwrap(), 1);
     assert_eq!(s.plant_timeline("P1").unwrap().unwrap().sessions[0].fused, 7.0);
 }
