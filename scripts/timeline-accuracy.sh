@@ -11,7 +11,7 @@
 # Environment: PLANTS [36], DAYS [30], START_AGE [14], SEED [800001] (the
 #   sequence, rendered only when SEQUENCE_DIR has no truth.csv; a partial
 #   render resumes), MODEL [models/phyllo.onnx], THREADS [2],
-#   RULES ["median-side max-side mean-side max view:SV_108"], the first the daemon's default.
+#   RULES ["second-max-side median-side max-side mean-side max view:SV_108"], the first the daemon's default.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 plants=${PLANTS:-36}
@@ -37,4 +37,4 @@ if [ ! -s "$counts" ] || [ "$(wc -l <"$counts")" -ne "$frames" ]; then
 fi
 # shellcheck disable=SC2086 # RULES is a word list
 python3 "$root/scripts/timeline_accuracy.py" --phyllo "$bin/phyllo" --sequence "$dir" --counts "$counts" \
-  --rules ${RULES:-median-side max-side mean-side max view:SV_108}
+  --rules ${RULES:-second-max-side median-side max-side mean-side max view:SV_108}

@@ -193,7 +193,7 @@ def main():
             timeline, events = run_timeline(a.phyllo, o, rule, os.path.join(tmp, str(i)))
             if i == 0:
                 by_age = age_bands(truth, timeline)
-            if i < 2:
+            if source == "model":
                 per_plant.append(plant_squared_errors(truth, timeline))
             fused, living, emerged, errs, after, dateable, n_events, spurious, ph = score(truth, timeline, events)
             n = max(len(errs), 1)
@@ -206,12 +206,12 @@ def main():
             split_text = " / ".join(f"{sum(x) / max(len(x), 1):.2f} ({len(x)})" for x in split)
             print(f"| {source} | {rule} | {count_summary(fused)} | {count_summary(living)} | {count_summary(emerged)} | "
                   f"{n_events} | {dateable} | {n_events - spurious} | {spurious} | {mae:.2f} | {bias:+.2f} | {within:.0f} % | {split_text} | {ph_text} |")
-    if len(a.rules) > 1:
-        (ra, ea), (rb, eb) = zip(a.rules[:2], per_plant)
+    print("fused count closer to the truth per plant (squared error over its days):")
+    ea = per_plant[0]
+    for rb, eb in zip(a.rules[1:], per_plant[1:]):
         wa = sum(ea[p] < eb[p] for p in ea)
         wb = sum(eb[p] < ea[p] for p in ea)
-        print(f"fused count closer to the truth per plant (squared error over its days): {ra} on {wa} plants, "
-              f"{rb} on {wb}; sign test p = {sign_test(wa, wb):.3f}")
+        print(f"  {a.rules[0]} on {wa} plants, {rb} on {wb}; sign test p = {sign_test(wa, wb):.3f}")
     print(f"fused count by plant age, {a.rules[0]}:")
     for band, errs in by_age:
         print(f"  {band}: {count_summary(errs)} ({len(errs)} plant-days)")

@@ -160,9 +160,10 @@ impl Default for InferenceConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TimelineConfig {
-    /// How one session's views become one count: `median-side` (median of the
-    /// side views; top view only if there is no side view), `max-side`, `max`
-    /// (all views), `mean-side`, or `view:SV_108` (that view, else `median-side`).
+    /// How one session's views become one count: `second-max-side` (the
+    /// second-largest side-view count; top view only if there is no side view),
+    /// `max-side`, `median-side`, `mean-side`, `max` (all views), or
+    /// `view:SV_108` (that view, else `second-max-side`).
     pub fusion: String,
     /// Images of a plant less than this many minutes apart belong to the same
     /// imaging session.
@@ -175,7 +176,7 @@ pub struct TimelineConfig {
 impl Default for TimelineConfig {
     fn default() -> Self {
         Self {
-            fusion: "median-side".into(),
+            fusion: "second-max-side".into(),
             session_gap_minutes: 120.0,
             living_window: 3,
         }
@@ -292,7 +293,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(cfg.inference.workers, 2);
-        assert_eq!(cfg.timeline.fusion, "median-side");
+        assert_eq!(cfg.timeline.fusion, "second-max-side");
         assert_eq!(cfg.export_dir(), PathBuf::from("/var/lib/phyllo/exports"));
     }
 

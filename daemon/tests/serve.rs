@@ -205,8 +205,8 @@ fn serve_counts_every_complete_image_exactly_once() {
         .iter()
         .any(|(p, e)| p.starts_with("P3_") && e.contains("not a complete image")));
     let p2 = store.plant_timeline("P2").unwrap().unwrap();
-    // The default fusion: the median of the two side views, 6 and 7.
-    assert_eq!((p2.sessions.len(), p2.sessions[0].fused), (1, 6.5));
+    // The default fusion: the second-largest of the two side views, 6 and 7.
+    assert_eq!((p2.sessions.len(), p2.sessions[0].fused), (1, 6.0));
     let p1 = store.plant_timeline("P1").unwrap().unwrap();
     assert_eq!(p1.sessions.len(), 4);
     let leaves: Vec<u32> = p1.events.iter().map(|e| e.0).collect();
