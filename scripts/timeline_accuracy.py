@@ -51,16 +51,29 @@ def observations(counts_path):
 
 
 def truth_observations(truth):
-    """The true living-leaf count as the day's only view: the model taken out."""
-    return [(t["plant"], f"{t['date']}T{t['time']}", "SV_108", int(t["living_leaves"])) for t in truth]
+    """The true living-leaf count in each of the five side views: the model taken out."""
+    return [(t["plant"], f"{t['date']}T{t['time']}", f"SV_{a}", int(t["living_leaves"]))
+            for t in truth for a in (0, 36, 72, 108, 144)]
+
+
+def timeline_section(spec):
+    """The `[timeline]` lines of a spec `RULE[,KEY=VALUE...]`, e.g. `second-max-side,death_penalty=2`."""
+    rule, *settings = spec.split(",")
+    lines = [f'fusion = "{rule}"']
+    for kv in settings:
+        key, sep, value = kv.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise SystemExit(f"{spec}: expected RULE[,KEY=VALUE...]")
+        lines.append(f"{key.strip()} = {value.strip()}")
+    return "\n".join(lines) + "\n"
 
 
 def run_timeline(phyllo, obs, rule, work):
-    """Imports `obs` under fusion `rule` into a new store; returns (timeline, events) rows."""
+    """Imports `obs` under the fusion spec `rule` into a new store; returns (timeline, events) rows."""
     os.makedirs(work)
     cfg = os.path.join(work, "phyllo.toml")
     with open(cfg, "w") as f:
-        f.write(f'drop_dir = "{work}/drop"\ndatabase = "{work}/db.sqlite"\n[timeline]\nfusion = "{rule}"\n')
+        f.write(f'drop_dir = "{work}/drop"\ndatabase = "{work}/db.sqlite"\n[timeline]\n{timeline_section(rule)}')
     obs_csv = os.path.join(work, "obs.csv")
     with open(obs_csv, "w", newline="") as f:
         w = csv.writer(f)
@@ -169,7 +182,8 @@ def main():
     ap.add_argument("--phyllo", required=True)
     ap.add_argument("--sequence", required=True)
     ap.add_argument("--counts", required=True)
-    ap.add_argument("--rules", nargs="+", required=True)
+    ap.add_argument("--rules", nargs="+", required=True,
+                    help="fusion specs RULE[,KEY=VALUE...] ([timeline] settings), the first compared with the rest")
     a = ap.parse_args()
     truth = read_csv(os.path.join(a.sequence, "truth.csv"))
     obs = observations(a.counts)

@@ -171,6 +171,10 @@ pub struct TimelineConfig {
     /// Window (sessions, odd) of the centred moving median that smooths living
     /// leaves; 1 disables smoothing.
     pub living_window: usize,
+    /// Cost of one lost leaf when lasting drops of the side views' counts are
+    /// read as leaves that died, so later leaves keep their numbers: a one-leaf
+    /// drop must show in more than this many view-sessions; 0 reads no deaths.
+    pub death_penalty: f64,
 }
 
 impl Default for TimelineConfig {
@@ -179,6 +183,7 @@ impl Default for TimelineConfig {
             fusion: "second-max-side".into(),
             session_gap_minutes: 120.0,
             living_window: 3,
+            death_penalty: 3.0,
         }
     }
 }
@@ -261,6 +266,9 @@ impl Config {
         }
         if self.timeline.living_window.is_multiple_of(2) {
             bail!("timeline.living_window must be odd (1 disables smoothing)");
+        }
+        if !(self.timeline.death_penalty >= 0.0 && self.timeline.death_penalty.is_finite()) {
+            bail!("timeline.death_penalty must be 0 (read no deaths) or a positive number");
         }
         if self.timeline.session_gap_minutes <= 0.0 {
             bail!("timeline.session_gap_minutes must be positive");
@@ -372,6 +380,7 @@ mod tests {
             "fusion",
             "session_gap_minutes",
             "living_window",
+            "death_penalty",
             "[export]",
             "dir",
             "[feed]",

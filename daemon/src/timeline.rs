@@ -24,6 +24,16 @@
 //!    Leaves already present at the first session have no known date and get
 //!    no event. The phyllochron is the least-squares slope of emergence time
 //!    (days) against leaf number.
+//!    Old leaves die, and the model counts living leaves only, so from the
+//!    first death on the fused count lags the leaves emerged. With a
+//!    `death_penalty` λ > 0 (default 3), [`deaths`] first reads lasting drops
+//!    as leaves lost: it fits a whole-leaf living count to every side view's
+//!    count, where a rise is free and each leaf lost costs λ squared count
+//!    errors (so a one-leaf drop must show in more than λ view-sessions, e.g.
+//!    four of five views on one day, to be read as a death). The isotonic fit
+//!    then runs on fused + lost, so leaves after a death keep their numbers.
+//!    On rendered sequences this dated emergences after the first death with
+//!    MAE 2.0 d instead of 4.2 d (`scripts/timeline-accuracy.sh`, docs/daemon.md).
 //! 4. **Living leaves** may fall when old leaves senesce: a centred moving
 //!    median of the fused counts (window `living_window`), which removes
 //!    one-session spikes but keeps lasting drops.
@@ -73,14 +83,8 @@ impl FusionRule {
 
     /// Fuses one session's `(view, count)` pairs. `None` if there are none.
     pub fn fuse(&self, views: &[(View, f64)]) -> Option<f64> {
-        let side: Vec<f64> = views
-            .iter()
-            .filter(|(v, _)| !v.is_top())
-            .map(|(_, c)| *c)
-            .collect();
         let all: Vec<f64> = views.iter().map(|(_, c)| *c).collect();
-        // Side-view rules fall back to all views when a session has only a top view.
-        let pool = if side.is_empty() { &all } else { &side };
+        let pool = &side_counts(views);
         if pool.is_empty() {
             return None;
         }
@@ -104,6 +108,20 @@ impl FusionRule {
 }
 
 /// Second-largest value (the only one of a single value); `xs` is not empty.
+/// The side views' counts; every count when a session has only top views.
+fn side_counts(views: &[(View, f64)]) -> Vec<f64> {
+    let side: Vec<f64> = views
+        .iter()
+        .filter(|(v, _)| !v.is_top())
+        .map(|(_, c)| *c)
+        .collect();
+    if side.is_empty() {
+        views.iter().map(|(_, c)| *c).collect()
+    } else {
+        side
+    }
+}
+
 fn second_max(xs: &[f64]) -> f64 {
     let mut v = xs.to_vec();
     v.sort_by(|a, b| b.total_cmp(a));
@@ -130,6 +148,8 @@ pub struct TimelineParams {
     pub session_gap: Duration,
     /// Odd window of the living-leaves moving median.
     pub living_window: usize,
+    /// Cost of one lost leaf in [`deaths`]; 0 reads no deaths.
+    pub death_penalty: f64,
 }
 
 impl TimelineParams {
@@ -139,6 +159,7 @@ impl TimelineParams {
             fusion: FusionRule::parse(&cfg.fusion)?,
             session_gap: Duration::milliseconds((cfg.session_gap_minutes * 60_000.0) as i64),
             living_window: cfg.living_window,
+            death_penalty: cfg.death_penalty,
         })
     }
 }
@@ -171,6 +192,8 @@ pub struct Session {
     pub fused: f64,
     /// Weight in the isotonic fit (number of counts).
     pub weight: f64,
+    /// Leaves lost by this session, as [`deaths`] reads them.
+    pub lost: f64,
     /// Leaves emerged: the non-decreasing fit.
     pub emerged: f64,
     /// Living leaves, smoothed.
@@ -222,6 +245,81 @@ pub fn isotonic(y: &[f64], w: &[f64]) -> Vec<f64> {
         .collect()
 }
 
+/// Leaves lost by each session, read from each session's view counts: the
+/// cumulative drops of the whole-leaf sequence `L` minimising
+/// `Σ_sessions Σ_views (count − L)² + penalty · Σ max(0, L[i−1] − L[i])`.
+///
+/// A dead leaf never returns, so every lasting drop of the living count is a
+/// leaf lost, while a rise costs nothing (leaves emerge). The penalty decides
+/// how much evidence (views × sessions) a drop needs before it is believed
+/// rather than taken for a miscount. Dynamic programming over `L` in
+/// `0..=ceil(max count)`, O(sessions · L). A penalty of 0 reads no deaths.
+pub fn deaths(counts: &[Vec<f64>], penalty: f64) -> Vec<f64> {
+    if penalty <= 0.0 || counts.is_empty() {
+        return vec![0.0; counts.len()];
+    }
+    let top = counts.iter().flatten().fold(0.0f64, |m, &f| m.max(f)).ceil() as usize;
+    let levels = top + 1;
+    let err = |views: &[f64], l: usize| views.iter().map(|c| (c - l as f64).powi(2)).sum::<f64>();
+    let mut cost: Vec<f64> = (0..levels).map(|l| err(&counts[0], l)).collect();
+    // back[i][l]: the level at session i − 1 on the best path reaching l at session i.
+    let mut back: Vec<Vec<usize>> = Vec::with_capacity(counts.len());
+    back.push((0..levels).collect());
+    for views in &counts[1..] {
+        // Best predecessor at or below l (a rise is free) ...
+        let mut below = vec![(0.0, 0usize); levels];
+        let mut best = (f64::INFINITY, 0usize);
+        for (l, &c) in cost.iter().enumerate() {
+            if c < best.0 {
+                best = (c, l);
+            }
+            below[l] = best;
+        }
+        // ... and above l, each level dropped costing `penalty`.
+        let mut above = vec![(f64::INFINITY, 0usize); levels];
+        let mut run = (f64::INFINITY, 0usize);
+        for l in (0..levels).rev() {
+            run = (run.0 + penalty, run.1);
+            if cost[l] < run.0 {
+                run = (cost[l], l);
+            }
+            above[l] = run;
+        }
+        let mut from = vec![0usize; levels];
+        let next: Vec<f64> = (0..levels)
+            .map(|l| {
+                // Ties keep the living count level or rising: a death must pay its way.
+                let (c, k) = if below[l].0 <= above[l].0 {
+                    below[l]
+                } else {
+                    above[l]
+                };
+                from[l] = k;
+                c + err(views, l)
+            })
+            .collect();
+        back.push(from);
+        cost = next;
+    }
+    let mut level = (0..levels)
+        .min_by(|&a, &b| cost[a].total_cmp(&cost[b]))
+        .expect("levels >= 1");
+    let mut path = vec![0usize; counts.len()];
+    for i in (0..counts.len()).rev() {
+        path[i] = level;
+        level = back[i][level];
+    }
+    let mut lost = 0.0;
+    let mut out = Vec::with_capacity(path.len());
+    for (i, &l) in path.iter().enumerate() {
+        if i > 0 && l < path[i - 1] {
+            lost += (path[i - 1] - l) as f64;
+        }
+        out.push(lost);
+    }
+    out
+}
+
 /// Centred moving median with a window shrinking symmetrically at the ends.
 pub fn moving_median(y: &[f64], window: usize) -> Vec<f64> {
     let half = window / 2;
@@ -250,6 +348,7 @@ pub fn compute(obs: &[Obs], p: &TimelineParams) -> Timeline {
                 views: vec![],
                 fused: 0.0,
                 weight: 0.0,
+                lost: 0.0,
                 emerged: 0.0,
                 living: 0.0,
             });
@@ -267,9 +366,15 @@ pub fn compute(obs: &[Obs], p: &TimelineParams) -> Timeline {
     }
     let fused: Vec<f64> = sessions.iter().map(|s| s.fused).collect();
     let weights: Vec<f64> = sessions.iter().map(|s| s.weight).collect();
-    let emerged = isotonic(&fused, &weights);
+    // Every side view is evidence of a death (a dead leaf leaves every view),
+    // so one view's miscount is outweighed by the others.
+    let evidence: Vec<Vec<f64>> = sessions.iter().map(|s| side_counts(&s.views)).collect();
+    let lost = deaths(&evidence, p.death_penalty);
+    let with_lost: Vec<f64> = fused.iter().zip(&lost).map(|(f, l)| f + l).collect();
+    let emerged = isotonic(&with_lost, &weights);
     let living = moving_median(&fused, p.living_window);
     for (i, s) in sessions.iter_mut().enumerate() {
+        s.lost = lost[i];
         s.emerged = emerged[i];
         s.living = living[i];
     }
