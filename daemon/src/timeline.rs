@@ -247,7 +247,8 @@ pub fn isotonic(y: &[f64], w: &[f64]) -> Vec<f64> {
 
 /// Leaves lost by each session, read from each session's view counts: the
 /// cumulative drops of the whole-leaf sequence `L` minimising
-/// `Σ_sessions Σ_views (count − L)² + penalty · Σ max(0, L[i−1] − L[i])`.
+/// `Σ_sessions Σ_views |count − L| + penalty · Σ max(0, L[i−1] − L[i])`
+/// (absolute errors, so one grossly wrong count weighs no more than its size).
 ///
 /// A dead leaf never returns, so every lasting drop of the living count is a
 /// leaf lost, while a rise costs nothing (leaves emerge). The penalty decides
@@ -260,7 +261,7 @@ pub fn deaths(counts: &[Vec<f64>], penalty: f64) -> Vec<f64> {
     }
     let top = counts.iter().flatten().fold(0.0f64, |m, &f| m.max(f)).ceil() as usize;
     let levels = top + 1;
-    let err = |views: &[f64], l: usize| views.iter().map(|c| (c - l as f64).powi(2)).sum::<f64>();
+    let err = |views: &[f64], l: usize| views.iter().map(|c| (c - l as f64).abs()).sum::<f64>();
     let mut cost: Vec<f64> = (0..levels).map(|l| err(&counts[0], l)).collect();
     // back[i][l]: the level at session i − 1 on the best path reaching l at session i.
     let mut back: Vec<Vec<usize>> = Vec::with_capacity(counts.len());
@@ -554,6 +555,79 @@ mod tests {
         assert_eq!(FusionRule::SecondMaxSide.fuse(&one_over_count), Some(8.0));
         assert_eq!(FusionRule::SecondMaxSide.fuse(&one_over_count[..1]), Some(12.0));
         assert!(FusionRule::parse("largest").is_err());
+    }
+
+    /// Five side views per day with these counts, each view off by `noise(day, view)`.
+    fn five_views(counts: &[f64], noise: impl Fn(usize, usize) -> f64) -> Vec<Obs> {
+        let mut obs = Vec::new();
+        for (i, &c) in counts.iter().enumerate() {
+            for (k, a) in [0u16, 36, 72, 108, 144].iter().enumerate() {
+                obs.push(Obs {
+                    taken_at: day(i as i64) + Duration::seconds(20 * k as i64),
+                    view: View::Side(*a),
+                    count: c + noise(i, k),
+                });
+            }
+        }
+        obs
+    }
+
+    #[test]
+    fn lasting_drops_are_leaves_lost_and_later_leaves_keep_their_numbers() {
+        // Living leaves: 6 emerge to 8, leaf 1 dies on day 4, leaves 9 and 10 follow.
+        let living = [6., 7., 7., 8., 7., 7., 8., 8., 9.];
+        let t = compute(&five_views(&living, |_, _| 0.0), &TimelineParams::default());
+        let lost: Vec<f64> = t.sessions.iter().map(|s| s.lost).collect();
+        assert_eq!(lost, vec![0., 0., 0., 0., 1., 1., 1., 1., 1.]);
+        let emerged: Vec<f64> = t.sessions.iter().map(|s| s.emerged).collect();
+        assert_eq!(emerged, vec![6., 7., 7., 8., 8., 8., 9., 9., 10.]);
+        let leaves: Vec<u32> = t.events.iter().map(|e| e.leaf).collect();
+        assert_eq!(leaves, vec![7, 8, 9, 10]);
+        assert_eq!(t.events[2].seen_at, day(6));
+        // Without reading deaths the drop is pooled away and leaf 10 is never dated.
+        let off = TimelineParams {
+            death_penalty: 0.0,
+            ..TimelineParams::default()
+        };
+        let t = compute(&five_views(&living, |_, _| 0.0), &off);
+        let leaves: Vec<u32> = t.events.iter().map(|e| e.leaf).collect();
+        assert_eq!(leaves, vec![7, 8, 9]);
+        assert_eq!(t.events[2].seen_at, day(8));
+    }
+
+    #[test]
+    fn one_views_miscounts_are_not_deaths() {
+        // Every day one view (a different one) counts a leaf fewer, twice two views do.
+        let living = [6., 6., 7., 7., 7., 8., 8., 8.];
+        let noise = |i: usize, k: usize| {
+            if k == i % 5 || (i % 3 == 0 && k == (i + 2) % 5) {
+                -1.0
+            } else {
+                0.0
+            }
+        };
+        let t = compute(&five_views(&living, noise), &TimelineParams::default());
+        assert!(t.sessions.iter().all(|s| s.lost == 0.0), "{:?}", t.sessions);
+        let leaves: Vec<u32> = t.events.iter().map(|e| e.leaf).collect();
+        assert_eq!(leaves, vec![7, 8]);
+    }
+
+    #[test]
+    fn deaths_on_plain_counts() {
+        assert_eq!(deaths(&[], 3.0), Vec::<f64>::new());
+        let one = |xs: &[f64]| xs.iter().map(|&x| vec![x]).collect::<Vec<_>>();
+        // One count per session: a drop must cost more than the penalty to be believed.
+        let lasting = one(&[5., 5., 5., 5., 4., 4., 4., 4.]);
+        assert_eq!(deaths(&lasting, 3.0), vec![0., 0., 0., 0., 1., 1., 1., 1.]);
+        assert_eq!(deaths(&lasting, 0.0), vec![0.; 8]);
+        // Four sessions' evidence against a penalty of five: a miscount.
+        assert_eq!(deaths(&lasting, 5.0), vec![0.; 8]);
+        // A two-session dip (cost 2) is cheaper than a death and a new leaf.
+        let dip = one(&[5., 5., 5., 5., 4., 4., 5., 5.]);
+        assert_eq!(deaths(&dip, 3.0), vec![0.; 8]);
+        // Two leaves at once.
+        let two = one(&[9., 9., 9., 9., 7., 7., 7., 7.]);
+        assert_eq!(deaths(&two, 3.0), vec![0., 0., 0., 0., 2., 2., 2., 2.]);
     }
 
     #[test]

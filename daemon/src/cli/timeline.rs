@@ -59,7 +59,7 @@ pub fn render(t: &PlantTimeline) -> String {
     for v in &views {
         s += &format!("{v:>8}");
     }
-    s += &format!("{:>8}{:>9}{:>8}\n", "fused", "emerged", "living");
+    s += &format!("{:>8}{:>9}{:>8}{:>6}\n", "fused", "emerged", "living", "lost");
     for row in &t.sessions {
         s += &format!("{:<24}", row.start);
         for v in &views {
@@ -69,8 +69,8 @@ pub fn render(t: &PlantTimeline) -> String {
             }
         }
         s += &format!(
-            "{:>8.1}{:>9.2}{:>8.1}\n",
-            row.fused, row.leaves_emerged, row.living
+            "{:>8.1}{:>9.2}{:>8.1}{:>6}\n",
+            row.fused, row.leaves_emerged, row.living, row.leaves_lost
         );
     }
     s += "emergence events:\n";

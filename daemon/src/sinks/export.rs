@@ -35,10 +35,11 @@ fn query(kind: &str) -> anyhow::Result<&'static str> {
              WHERE ?1 IS NULL OR s.start >= ?1
              ORDER BY p.name, s.start"
         }
-        // One row per plant and session: fused count, leaves emerged (fit), living leaves (smoothed).
+        // One row per plant and session: fused count, leaves emerged (fit), living leaves
+        // (smoothed), leaves read as dead by then.
         "timeline" => {
             "SELECT p.name AS plant, s.start AS session_start, s.fused, s.leaves_emerged, s.living,
-                    p.phyllochron_days
+                    p.phyllochron_days, s.leaves_lost
              FROM sessions s JOIN plants p ON p.id = s.plant_id
              WHERE ?1 IS NULL OR s.start >= ?1
              ORDER BY p.name, s.start"

@@ -115,6 +115,15 @@ CREATE TABLE service (
     r#"
 ALTER TABLE observations ADD COLUMN settings TEXT;  -- JSON: zoom and post-processing
 "#,
+    // 3: leaves read as dead, and the timeline settings the fits were made
+    // with, so a store opened with other settings refits every plant.
+    r#"
+ALTER TABLE sessions ADD COLUMN leaves_lost REAL NOT NULL DEFAULT 0;
+CREATE TABLE meta (
+    key   TEXT PRIMARY KEY,
+    value TEXT NOT NULL
+) WITHOUT ROWID;
+"#,
 ];
 
 /// Brings the database to the newest schema version.

@@ -138,6 +138,14 @@ pub struct Store {
     max_attempts: u32,
 }
 
+/// The `[timeline]` settings a fit depends on, as stored in `meta`.
+fn timeline_settings(tl: &crate::config::TimelineConfig) -> String {
+    format!(
+        "fusion={};session_gap_minutes={};living_window={};death_penalty={}",
+        tl.fusion, tl.session_gap_minutes, tl.living_window, tl.death_penalty
+    )
+}
+
 impl Store {
     /// Opens (creating if needed) a database for writing and migrates it.
     pub fn open(path: &Path, tl: &crate::config::TimelineConfig, max_attempts: u32) -> anyhow::Result<Store> {
@@ -166,16 +174,27 @@ impl Store {
             fusion_name: tl.fusion.clone(),
             max_attempts,
         };
-        // A changed fusion rule (in the config, or a new default after an upgrade)
-        // would otherwise leave plants that get no new image fused the old way.
-        let stale: bool = store.conn.query_row(
-            "SELECT EXISTS(SELECT 1 FROM sessions WHERE fusion_rule <> ?1)",
-            [&tl.fusion],
-            |r| r.get(0),
-        )?;
-        if stale {
-            let plants = store.recompute_all()?;
-            tracing::info!(plants, rule = %tl.fusion, "view fusion rule changed: every timeline refitted");
+        // Changed timeline settings (in the config, or new defaults after an
+        // upgrade) would otherwise leave plants that get no new image fitted the old way.
+        let fit = timeline_settings(tl);
+        let stored: Option<String> = store
+            .conn
+            .query_row("SELECT value FROM meta WHERE key = 'timeline'", [], |r| r.get(0))
+            .optional()?;
+        if stored.as_deref() != Some(fit.as_str()) {
+            let has_sessions: bool =
+                store
+                    .conn
+                    .query_row("SELECT EXISTS(SELECT 1 FROM sessions)", [], |r| r.get(0))?;
+            if has_sessions {
+                let plants = store.recompute_all()?;
+                tracing::info!(plants, settings = %fit, was = ?stored, "timeline settings changed: every timeline refitted");
+            }
+            store.conn.execute(
+                "INSERT INTO meta (key, value) VALUES ('timeline', ?1)
+                 ON CONFLICT (key) DO UPDATE SET value = excluded.value",
+                [&fit],
+            )?;
         }
         Ok(store)
     }
@@ -693,8 +712,8 @@ fn recompute(
             views.insert(v.to_string(), c);
         }
         tx.prepare_cached(
-            "INSERT INTO sessions (plant_id, start, views, n_counts, fused, fusion_rule, leaves_emerged, living)
-             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
+            "INSERT INTO sessions (plant_id, start, views, n_counts, fused, fusion_rule, leaves_emerged, living, leaves_lost)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
         )?
         .execute(params![
             plant_id,
@@ -704,7 +723,8 @@ fn recompute(
             s.fused,
             rule,
             s.emerged,
-            s.living
+            s.living,
+            s.lost
         ])?;
     }
     let mut new_leaves = Vec::new();

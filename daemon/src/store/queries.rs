@@ -91,6 +91,8 @@ pub struct SessionRow {
     pub leaves_emerged: f64,
     /// Living leaves, smoothed.
     pub living: f64,
+    /// Leaves read as dead by this session.
+    pub leaves_lost: f64,
 }
 
 fn feed_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<FeedRow> {
@@ -230,7 +232,7 @@ impl Store {
             return Ok(None);
         };
         let mut stmt = self.conn.prepare(
-            "SELECT start, views, fused, leaves_emerged, living FROM sessions WHERE plant_id = ?1 ORDER BY start",
+            "SELECT start, views, fused, leaves_emerged, living, leaves_lost FROM sessions WHERE plant_id = ?1 ORDER BY start",
         )?;
         let sessions = stmt
             .query_map([id], |r| {
@@ -240,10 +242,11 @@ impl Store {
                     r.get(2)?,
                     r.get(3)?,
                     r.get(4)?,
+                    r.get(5)?,
                 ))
             })?
             .map(|row| {
-                let (start, views, fused, leaves_emerged, living) = row?;
+                let (start, views, fused, leaves_emerged, living, leaves_lost) = row?;
                 let views = serde_json::from_str(&views).context("sessions.views")?;
                 Ok(SessionRow {
                     start,
@@ -251,6 +254,7 @@ impl Store {
                     fused,
                     leaves_emerged,
                     living,
+                    leaves_lost,
                 })
             })
             .collect::<anyhow::Result<_>>()?;

@@ -358,7 +358,7 @@ fn migrations_are_versioned_and_readers_check_them() {
 }
 
 #[test]
-fn recompute_all_applies_a_new_fusion_rule() {
+fn opening_with_other_timeline_settings_refits_every_plant() {
     let dir = tempfile::tempdir().unwrap();
     let mut s = open(&dir);
     for (a, c) in [(0u16, 7u32), (108, 9)] {
@@ -388,6 +388,23 @@ fn recompute_all_applies_a_new_fusion_rule() {
     assert_eq!(rule, "view:SV_0");
     assert_eq!(s.recompute_all().unwrap(), 1);
     assert_eq!(s.plant_timeline("P1").unwrap().unwrap().sessions[0].fused, 7.0);
+    drop(s);
+    // Any other timeline setting refits too, and the settings are kept for the next open.
+    let tl = TimelineConfig {
+        fusion: "max-side".into(),
+        death_penalty: 0.0,
+        ..TimelineConfig::default()
+    };
+    let s = Store::open(&db(&dir), &tl, 3).unwrap();
+    assert_eq!(s.plant_timeline("P1").unwrap().unwrap().sessions[0].fused, 9.0);
+    let kept: String = s
+        .conn()
+        .query_row("SELECT value FROM meta WHERE key = 'timeline'", [], |r| r.get(0))
+        .unwrap();
+    assert!(
+        kept.contains("fusion=max-side;") && kept.ends_with("death_penalty=0"),
+        "{kept}"
+    );
 }
 
 #[test]
