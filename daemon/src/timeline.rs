@@ -600,7 +600,7 @@ mod tests {
         // Every day one view (a different one) counts a leaf fewer, twice two views do.
         let living = [6., 6., 7., 7., 7., 8., 8., 8.];
         let noise = |i: usize, k: usize| {
-            if k == i % 5 || (i % 3 == 0 && k == (i + 2) % 5) {
+            if k == i % 5 || (i.is_multiple_of(3) && k == (i + 2) % 5) {
                 -1.0
             } else {
                 0.0
