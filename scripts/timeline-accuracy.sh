@@ -11,7 +11,8 @@
 # Environment: PLANTS [36], DAYS [30], START_AGE [14], SEED [800001] (the
 #   sequence, rendered only when SEQUENCE_DIR has no truth.csv; a partial
 #   render resumes), MODEL [models/phyllo.onnx], THREADS [2],
-#   RULES ["second-max-side median-side max-side mean-side max view:SV_108"], the first the daemon's default.
+#   RULES ["second-max-side median-side max-side mean-side max view:SV_108"], the first the daemon's default;
+#   a rule may carry [timeline] settings after commas: "second-max-side,death_penalty=0".
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 plants=${PLANTS:-36}

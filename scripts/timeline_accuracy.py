@@ -97,7 +97,7 @@ def days_from_mid(day, when):
 def score(truth, timeline, events):
     """Per plant-day count errors and per leaf emergence-date errors."""
     by_day = {(r["plant"], r["session_start"][:10]): r for r in timeline}
-    fused, living, emerged = [], [], []
+    fused, living, emerged, lost_errs = [], [], [], []
     for t in truth:
         r = by_day.get((t["plant"], t["date"]))
         if r is None:
@@ -105,6 +105,8 @@ def score(truth, timeline, events):
         fused.append(float(r["fused"]) - int(t["living_leaves"]))
         living.append(float(r["living"]) - int(t["living_leaves"]))
         emerged.append(float(r["leaves_emerged"]) - int(t["leaves_emerged"]))
+        # Exports from before schema 3 have no leaves_lost column: nothing read as lost.
+        lost_errs.append(float(r.get("leaves_lost") or 0) - (int(t["leaves_emerged"]) - int(t["living_leaves"])))
     date_errs, after_death, dateable, spurious, phyllochron_errs = [], [], 0, 0, []
     lost = {(t["plant"], t["date"]): int(t["living_leaves"]) < int(t["leaves_emerged"]) for t in truth}
     for plant in sorted({t["plant"] for t in truth}):
@@ -126,7 +128,7 @@ def score(truth, timeline, events):
         last = [r for r in timeline if r["plant"] == plant][-1]
         if true_rate is not None and last["phyllochron_days"]:
             phyllochron_errs.append(float(last["phyllochron_days"]) - true_rate)
-    return fused, living, emerged, date_errs, after_death, dateable, len(events), spurious, phyllochron_errs
+    return fused, living, emerged, lost_errs, date_errs, after_death, dateable, len(events), spurious, phyllochron_errs
 
 
 def phyllochron(leaf_dates):
@@ -151,12 +153,12 @@ def age_bands(truth, timeline, width=10):
     return [(f"ages {lo}-{lo + width - 1} d", bands[lo]) for lo in sorted(bands)]
 
 
-def plant_squared_errors(truth, timeline):
-    """Per plant, the sum over its days of the squared fused-count error."""
-    by_day = {(r["plant"], r["session_start"][:10]): float(r["fused"]) for r in timeline}
+def plant_squared_errors(truth, timeline, column="fused", true_column="living_leaves"):
+    """Per plant, the sum over its days of the squared error of the timeline's `column`."""
+    by_day = {(r["plant"], r["session_start"][:10]): float(r[column]) for r in timeline}
     out = {}
     for t in truth:
-        e = by_day[(t["plant"], t["date"])] - int(t["living_leaves"])
+        e = by_day[(t["plant"], t["date"])] - int(t[true_column])
         out[t["plant"]] = out.get(t["plant"], 0.0) + e * e
     return out
 
@@ -198,10 +200,10 @@ def main():
     print("to a truth leaf by number (the rest name a leaf the plant never had); dates in days from the true day's middle;")
     print("phyllochron: the timeline's days per leaf against the truth's (least squares over the dateable leaves), per plant")
     print("date MAE split: events before the plant lost its first leaf / after (n)")
-    print("| counts | fusion | fused count | living leaves (smoothed) | leaves emerged | events | dateable | matched | extra | date MAE (d) | bias (d) | within 1 d | date MAE before / after a leaf died (n) | phyllochron MAE / bias (d, plants) |")
-    print("|---|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|")
+    print("| counts | fusion | fused count | living leaves (smoothed) | leaves emerged | leaves lost | events | dateable | matched | extra | date MAE (d) | bias (d) | within 1 d | date MAE before / after a leaf died (n) | phyllochron MAE / bias (d, plants) |")
+    print("|---|---|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|")
     runs = [("model", r, obs) for r in a.rules] + [("truth", a.rules[0], truth_observations(truth))]
-    by_age, per_plant = None, []
+    by_age, per_plant, per_plant_emerged = None, [], []
     with tempfile.TemporaryDirectory() as tmp:
         for i, (source, rule, o) in enumerate(runs):
             timeline, events = run_timeline(a.phyllo, o, rule, os.path.join(tmp, str(i)))
@@ -209,7 +211,8 @@ def main():
                 by_age = age_bands(truth, timeline)
             if source == "model":
                 per_plant.append(plant_squared_errors(truth, timeline))
-            fused, living, emerged, errs, after, dateable, n_events, spurious, ph = score(truth, timeline, events)
+                per_plant_emerged.append(plant_squared_errors(truth, timeline, "leaves_emerged", "leaves_emerged"))
+            fused, living, emerged, lost, errs, after, dateable, n_events, spurious, ph = score(truth, timeline, events)
             n = max(len(errs), 1)
             mae = sum(abs(e) for e in errs) / n
             bias = sum(errs) / n
@@ -219,13 +222,14 @@ def main():
             split = [[abs(e) for e, a in zip(errs, after) if a == side] for side in (False, True)]
             split_text = " / ".join(f"{sum(x) / max(len(x), 1):.2f} ({len(x)})" for x in split)
             print(f"| {source} | {rule} | {count_summary(fused)} | {count_summary(living)} | {count_summary(emerged)} | "
-                  f"{n_events} | {dateable} | {n_events - spurious} | {spurious} | {mae:.2f} | {bias:+.2f} | {within:.0f} % | {split_text} | {ph_text} |")
-    print("fused count closer to the truth per plant (squared error over its days):")
-    ea = per_plant[0]
-    for rb, eb in zip(a.rules[1:], per_plant[1:]):
-        wa = sum(ea[p] < eb[p] for p in ea)
-        wb = sum(eb[p] < ea[p] for p in ea)
-        print(f"  {a.rules[0]} on {wa} plants, {rb} on {wb}; sign test p = {sign_test(wa, wb):.3f}")
+                  f"{count_summary(lost)} | {n_events} | {dateable} | {n_events - spurious} | {spurious} | {mae:.2f} | {bias:+.2f} | {within:.0f} % | {split_text} | {ph_text} |")
+    for what, errors in (("fused count", per_plant), ("leaves emerged", per_plant_emerged)):
+        print(f"{what} closer to the truth per plant (squared error over its days):")
+        ea = errors[0]
+        for rb, eb in zip(a.rules[1:], errors[1:]):
+            wa = sum(ea[p] < eb[p] for p in ea)
+            wb = sum(eb[p] < ea[p] for p in ea)
+            print(f"  {a.rules[0]} on {wa} plants, {rb} on {wb}; sign test p = {sign_test(wa, wb):.3f}")
     print(f"fused count by plant age, {a.rules[0]}:")
     for band, errs in by_age:
         print(f"  {band}: {count_summary(errs)} ({len(errs)} plant-days)")

@@ -32,8 +32,9 @@
 //!    errors (so a one-leaf drop must show in more than λ view-sessions, e.g.
 //!    four of five views on one day, to be read as a death). The isotonic fit
 //!    then runs on fused + lost, so leaves after a death keep their numbers.
-//!    On rendered sequences this dated emergences after the first death with
-//!    MAE 2.0 d instead of 4.2 d (`scripts/timeline-accuracy.sh`, docs/daemon.md).
+//!    On two rendered sequences this dated emergences after the first death
+//!    with MAE 2.9 and 2.0 d instead of 4.1 and 4.2 d
+//!    (`scripts/timeline-accuracy.sh`, docs/daemon.md).
 //! 4. **Living leaves** may fall when old leaves senesce: a centred moving
 //!    median of the fused counts (window `living_window`), which removes
 //!    one-session spikes but keeps lasting drops.

@@ -36,8 +36,10 @@ def test_score_matches_events_by_leaf_number_and_counts_extra_ones():
                 for d, f, ph in [(10, 1, ""), (11, 1, ""), (12, 2, ""), (13, 4, "1.5")]]
     events = [{"plant": "P", "leaf": "2", "emerged_at": "2018-04-12T00:00:00.000"},
               {"plant": "P", "leaf": "4", "emerged_at": "2018-04-13T00:00:00.000"}]
-    fused, living, emerged, date_errs, after, dateable, n_events, spurious, ph = ta.score(truth, timeline, events)
+    fused, living, emerged, lost, date_errs, after, dateable, n_events, spurious, ph = ta.score(truth, timeline, events)
     assert fused == [0.0, -1.0, 0.0, 1.0]
+    # An export without leaves_lost reads no leaf as lost, as the truth has none here.
+    assert lost == [0.0] * 4
     # Leaf 2 came out on the 11th (middle: noon), seen at midnight after it: half a day late.
     assert date_errs == [pytest.approx(0.5)]
     assert after == [False]
@@ -58,10 +60,11 @@ def test_score_marks_events_dated_after_the_plant_lost_a_leaf():
     dates = ["2018-04-01", "2018-04-02", "2018-04-12"]
     truth = [truth_row("P", "2018-04-11", 2, 2, dates), truth_row("P", "2018-04-12", 2, 3, dates)]
     timeline = [{"plant": "P", "session_start": f"2018-04-{d}T08:00:00.000", "fused": "2", "living": "2",
-                 "leaves_emerged": str(e), "phyllochron_days": ""} for d, e in [(11, 2), (12, 3)]]
+                 "leaves_emerged": str(e), "phyllochron_days": "", "leaves_lost": str(e - 2)} for d, e in [(11, 2), (12, 3)]]
     events = [{"plant": "P", "leaf": "3", "emerged_at": "2018-04-12T00:00:00.000"}]
-    _, _, emerged, date_errs, after, *_ = ta.score(truth, timeline, events)
+    _, _, emerged, lost, date_errs, after, *_ = ta.score(truth, timeline, events)
     assert emerged == [0.0, 0.0]
+    assert lost == [0.0, 0.0]
     assert date_errs == [pytest.approx(-0.5)]
     assert after == [True]
 
@@ -72,3 +75,13 @@ def test_sign_test_and_plant_errors():
     truth = [truth_row("P", f"2018-04-1{d}", 3, 3, []) for d in (0, 1)]
     timeline = [{"plant": "P", "session_start": f"2018-04-1{d}T08:00:00.000", "fused": f} for d, f in ((0, "4"), (1, "1"))]
     assert ta.plant_squared_errors(truth, timeline) == {"P": 5.0}
+    for row, e in zip(timeline, ("3", "5")):
+        row["leaves_emerged"] = e
+    assert ta.plant_squared_errors(truth, timeline, "leaves_emerged", "leaves_emerged") == {"P": 4.0}
+
+
+def test_timeline_section_takes_settings_after_the_rule():
+    assert ta.timeline_section("median-side") == 'fusion = "median-side"\n'
+    assert ta.timeline_section("second-max-side,death_penalty=0") == 'fusion = "second-max-side"\ndeath_penalty = 0\n'
+    with pytest.raises(SystemExit):
+        ta.timeline_section("second-max-side,death_penalty")
