@@ -25,7 +25,8 @@ pub fn register_font() {
 }
 
 /// Draws the timeline: per-view counts (grey), fused counts (blue), leaves
-/// emerged (red steps), living leaves (green), emergence events (red ticks).
+/// emerged (red steps), living leaves (green), emergence events (red ticks),
+/// and leaves read as lost (brown steps) once a plant has lost one.
 /// The x axis is days since the first session.
 pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
     register_font();
@@ -108,6 +109,21 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
         .map_err(err)?
         .label("leaves emerged (isotonic fit)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
+    if t.sessions.iter().any(|s| s.leaves_lost > 0.0) {
+        let brown = RGBColor(140, 90, 40);
+        let mut lost = Vec::new();
+        for (i, s) in t.sessions.iter().enumerate() {
+            if i > 0 {
+                lost.push((xs[i], t.sessions[i - 1].leaves_lost));
+            }
+            lost.push((xs[i], s.leaves_lost));
+        }
+        chart
+            .draw_series(LineSeries::new(lost, brown.stroke_width(2)))
+            .map_err(err)?
+            .label("leaves lost (dead)")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], brown.stroke_width(2)));
+    }
     for (leaf, at, _) in &t.events {
         let x = day(at)?;
         let y = *leaf as f64;
@@ -120,7 +136,7 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
     }
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
+        .position(SeriesLabelPosition::UpperLeft)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .label_font(("sans-serif", 14))
