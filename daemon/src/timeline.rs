@@ -140,6 +140,10 @@ fn median(xs: &[f64]) -> f64 {
     }
 }
 
+/// The largest leaf count accepted (`phyllo import` rejects larger ones): far
+/// above any plant's, it bounds the work of [`deaths`].
+pub const MAX_COUNT: u32 = 1000;
+
 /// Parameters of the timeline fit (from `[timeline]`).
 #[derive(Debug, Clone)]
 pub struct TimelineParams {
@@ -255,12 +259,15 @@ pub fn isotonic(y: &[f64], w: &[f64]) -> Vec<f64> {
 /// leaf lost, while a rise costs nothing (leaves emerge). The penalty decides
 /// how much evidence (views × sessions) a drop needs before it is believed
 /// rather than taken for a miscount. Dynamic programming over `L` in
-/// `0..=ceil(max count)`, O(sessions · L). A penalty of 0 reads no deaths.
+/// `0..=ceil(max count)`, O(sessions · L). A session without counts adds no
+/// evidence. A penalty of 0 reads no deaths.
 pub fn deaths(counts: &[Vec<f64>], penalty: f64) -> Vec<f64> {
-    if penalty <= 0.0 || counts.is_empty() {
+    let top = counts.iter().flatten().fold(0.0f64, |m, &f| m.max(f)).ceil();
+    // The program's tables grow with the largest count; no plant has that many leaves.
+    if penalty <= 0.0 || counts.is_empty() || !(top <= MAX_COUNT as f64) {
         return vec![0.0; counts.len()];
     }
-    let top = counts.iter().flatten().fold(0.0f64, |m, &f| m.max(f)).ceil() as usize;
+    let top = top as usize;
     let levels = top + 1;
     let err = |views: &[f64], l: usize| views.iter().map(|c| (c - l as f64).abs()).sum::<f64>();
     let mut cost: Vec<f64> = (0..levels).map(|l| err(&counts[0], l)).collect();
@@ -369,8 +376,19 @@ pub fn compute(obs: &[Obs], p: &TimelineParams) -> Timeline {
     let fused: Vec<f64> = sessions.iter().map(|s| s.fused).collect();
     let weights: Vec<f64> = sessions.iter().map(|s| s.weight).collect();
     // Every side view is evidence of a death (a dead leaf leaves every view),
-    // so one view's miscount is outweighed by the others.
-    let evidence: Vec<Vec<f64>> = sessions.iter().map(|s| side_counts(&s.views)).collect();
+    // so one view's miscount is outweighed by the others. A top view is none:
+    // it sees a few leaves fewer, and a day imaged from the top only would
+    // read as leaves lost.
+    let evidence: Vec<Vec<f64>> = sessions
+        .iter()
+        .map(|s| {
+            s.views
+                .iter()
+                .filter(|(v, _)| !v.is_top())
+                .map(|(_, c)| *c)
+                .collect()
+        })
+        .collect();
     let lost = deaths(&evidence, p.death_penalty);
     let with_lost: Vec<f64> = fused.iter().zip(&lost).map(|(f, l)| f + l).collect();
     let emerged = isotonic(&with_lost, &weights);
@@ -614,6 +632,22 @@ mod tests {
     }
 
     #[test]
+    fn a_day_with_the_top_view_only_loses_no_leaf() {
+        let mut obs = five_views(&[6., 6., 7., 7., 7., 8., 8., 8.], |_, _| 0.0);
+        // Day 3's side cameras failed: only its top view, counting 3, arrived.
+        obs.retain(|o| o.taken_at < day(3) || o.taken_at >= day(4));
+        obs.push(Obs {
+            taken_at: day(3),
+            view: View::Top(90),
+            count: 3.0,
+        });
+        let t = compute(&obs, &TimelineParams::default());
+        assert!(t.sessions.iter().all(|s| s.lost == 0.0), "{:?}", t.sessions);
+        let leaves: Vec<u32> = t.events.iter().map(|e| e.leaf).collect();
+        assert_eq!(leaves, vec![7, 8]);
+    }
+
+    #[test]
     fn deaths_on_plain_counts() {
         assert_eq!(deaths(&[], 3.0), Vec::<f64>::new());
         let one = |xs: &[f64]| xs.iter().map(|&x| vec![x]).collect::<Vec<_>>();
@@ -629,6 +663,8 @@ mod tests {
         // Two leaves at once.
         let two = one(&[9., 9., 9., 9., 7., 7., 7., 7.]);
         assert_eq!(deaths(&two, 3.0), vec![0., 0., 0., 0., 2., 2., 2., 2.]);
+        // An absurd count reads no deaths rather than building a table that size.
+        assert_eq!(deaths(&one(&[5., 4e9, 4., 4.]), 3.0), vec![0.; 4]);
     }
 
     #[test]

@@ -82,6 +82,13 @@ pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Vec<(String, NaiveDat
         let count: u32 = count
             .parse()
             .with_context(|| format!("{}:{line}: leaf_count '{count}' is not a count", path.display()))?;
+        if count > crate::timeline::MAX_COUNT {
+            bail!(
+                "{}:{line}: leaf_count {count} is not a plausible leaf count (at most {})",
+                path.display(),
+                crate::timeline::MAX_COUNT
+            );
+        }
         rows.push((plant, taken_at, View::parse(&view), count));
     }
     Ok(rows)
@@ -147,5 +154,15 @@ mod tests {
         std::fs::write(&p, "plant,time,view,leaf_count\n").unwrap();
         let err = format!("{:#}", read_rows(&p).unwrap_err());
         assert!(err.contains("no 'timestamp' column"), "{err}");
+        std::fs::write(
+            &p,
+            "plant,timestamp,view,leaf_count\nP1,2018-04-20,SV_108,4000000000\n",
+        )
+        .unwrap();
+        let err = format!("{:#}", read_rows(&p).unwrap_err());
+        assert!(
+            err.contains("obs.csv:2") && err.contains("not a plausible leaf count"),
+            "{err}"
+        );
     }
 }
