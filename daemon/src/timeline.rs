@@ -264,7 +264,7 @@ pub fn isotonic(y: &[f64], w: &[f64]) -> Vec<f64> {
 pub fn deaths(counts: &[Vec<f64>], penalty: f64) -> Vec<f64> {
     let top = counts.iter().flatten().fold(0.0f64, |m, &f| m.max(f)).ceil();
     // The program's tables grow with the largest count; no plant has that many leaves.
-    if penalty <= 0.0 || counts.is_empty() || !(top <= MAX_COUNT as f64) {
+    if penalty <= 0.0 || counts.is_empty() || top.is_nan() || top > MAX_COUNT as f64 {
         return vec![0.0; counts.len()];
     }
     let top = top as usize;
