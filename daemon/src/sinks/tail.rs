@@ -44,6 +44,11 @@ pub fn format_row(r: &FeedRow) -> String {
             r.taken_at.as_deref().unwrap_or("-"),
             r.message.as_deref().unwrap_or("")
         ),
+        "lost" => format!(
+            "{}  {plant}  LOST  {}",
+            r.taken_at.as_deref().unwrap_or("-"),
+            r.message.as_deref().unwrap_or("")
+        ),
         "import" => format!(
             "{}  {plant}  IMPORT  fused {}  emerged {}{new}",
             r.at,
@@ -141,6 +146,21 @@ mod tests {
         assert_eq!(
             format_row(&row),
             "2026-05-01T10:00:00  P1  SV_36  RECOUNT  P1/a.png: count 8 -> 9 (phyllo-s10-cpu)"
+        );
+    }
+
+    #[test]
+    fn a_lost_leaf_reads_with_its_plant_and_session() {
+        let row = FeedRow {
+            kind: "lost".into(),
+            plant: Some("P1".into()),
+            taken_at: Some("2026-05-04T10:00:00.000".into()),
+            message: Some("a leaf died by 2026-05-04 10:00 (1 lost in all)".into()),
+            ..FeedRow::default()
+        };
+        assert_eq!(
+            format_row(&row),
+            "2026-05-04T10:00:00.000  P1  LOST  a leaf died by 2026-05-04 10:00 (1 lost in all)"
         );
     }
 }

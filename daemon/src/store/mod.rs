@@ -698,6 +698,9 @@ fn recompute(
         .prepare_cached("SELECT leaf FROM events WHERE plant_id = ?1")?
         .query_map([plant_id], |r| r.get(0))?
         .collect::<Result<_, _>>()?;
+    let old_lost: f64 = tx
+        .prepare_cached("SELECT COALESCE(MAX(leaves_lost), 0) FROM sessions WHERE plant_id = ?1")?
+        .query_row([plant_id], |r| r.get(0))?;
     tx.execute("DELETE FROM sessions WHERE plant_id = ?1", [plant_id])?;
     tx.execute("DELETE FROM events WHERE plant_id = ?1", [plant_id])?;
     for s in &tl.sessions {
@@ -753,6 +756,27 @@ fn recompute(
                 now,
             )?;
         }
+    }
+    // One feed row per leaf newly read as lost, dated by the session it first shows in.
+    let new_lost = tl.sessions.last().map_or(0.0, |s| s.lost);
+    let mut k = old_lost + 1.0;
+    while k <= new_lost {
+        let at = tl.sessions.iter().find(|s| s.lost >= k).map(|s| s.start);
+        push_feed(
+            tx,
+            &FeedRow {
+                kind: "lost".into(),
+                plant: Some(plant.to_string()),
+                taken_at: at.map(iso),
+                message: Some(format!(
+                    "a leaf died by {} ({new_lost} lost in all)",
+                    at.map_or("-".into(), |t| t.format("%Y-%m-%d %H:%M").to_string()),
+                )),
+                ..FeedRow::default()
+            },
+            now,
+        )?;
+        k += 1.0;
     }
     let last = tl.sessions.last();
     tx.execute(

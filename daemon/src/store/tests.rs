@@ -327,6 +327,48 @@ fn import_is_fused_like_model_counts_and_idempotent() {
 }
 
 #[test]
+fn a_leaf_read_as_lost_reaches_the_feed_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    // Five side views a day; the plant loses its oldest leaf on day 4.
+    let living = [6u32, 7, 7, 8, 7, 7, 7];
+    let rows: Vec<(String, NaiveDateTime, View, u32)> = living
+        .iter()
+        .enumerate()
+        .flat_map(|(i, &c)| {
+            [0u16, 36, 72, 108, 144].into_iter().map(move |a| {
+                (
+                    "P1".to_string(),
+                    day(i as i64) + Duration::seconds(a as i64),
+                    View::Side(a),
+                    c,
+                )
+            })
+        })
+        .collect();
+    s.import("a.csv", &rows).unwrap();
+    let lost = |s: &Store| -> Vec<(String, String)> {
+        s.conn()
+            .prepare("SELECT taken_at, message FROM feed WHERE kind = 'lost'")
+            .unwrap()
+            .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))
+            .unwrap()
+            .collect::<Result<_, _>>()
+            .unwrap()
+    };
+    let rows_lost = lost(&s);
+    assert_eq!(rows_lost.len(), 1, "{rows_lost:?}");
+    assert_eq!(rows_lost[0].0, iso(day(4)));
+    assert!(rows_lost[0].1.contains("1 lost in all"), "{rows_lost:?}");
+    let t = s.plant_timeline("P1").unwrap().unwrap();
+    assert_eq!(t.sessions.last().unwrap().leaves_lost, 1.0);
+    assert_eq!(t.sessions.last().unwrap().leaves_emerged, 8.0);
+    // The same counts again: nothing new is lost.
+    s.import("a.csv", &rows).unwrap();
+    assert_eq!(lost(&s).len(), 1);
+}
+
+#[test]
 fn migrations_are_versioned_and_readers_check_them() {
     let dir = tempfile::tempdir().unwrap();
     drop(open(&dir));
