@@ -97,29 +97,21 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
         .map_err(err)?
         .label("living (smoothed)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], GREEN.stroke_width(2)));
-    let mut steps = Vec::new();
-    for (i, s) in t.sessions.iter().enumerate() {
-        if i > 0 {
-            steps.push((xs[i], t.sessions[i - 1].leaves_emerged));
-        }
-        steps.push((xs[i], s.leaves_emerged));
-    }
     chart
-        .draw_series(LineSeries::new(steps, RED.stroke_width(3)))
+        .draw_series(LineSeries::new(
+            steps(&xs, t.sessions.iter().map(|s| s.leaves_emerged)),
+            RED.stroke_width(3),
+        ))
         .map_err(err)?
         .label("leaves emerged (isotonic fit)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
     if t.sessions.iter().any(|s| s.leaves_lost > 0.0) {
         let brown = RGBColor(140, 90, 40);
-        let mut lost = Vec::new();
-        for (i, s) in t.sessions.iter().enumerate() {
-            if i > 0 {
-                lost.push((xs[i], t.sessions[i - 1].leaves_lost));
-            }
-            lost.push((xs[i], s.leaves_lost));
-        }
         chart
-            .draw_series(LineSeries::new(lost, brown.stroke_width(2)))
+            .draw_series(LineSeries::new(
+                steps(&xs, t.sessions.iter().map(|s| s.leaves_lost)),
+                brown.stroke_width(2),
+            ))
             .map_err(err)?
             .label("leaves lost (dead)")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], brown.stroke_width(2)));
@@ -145,4 +137,33 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
     root.present()
         .with_context(|| format!("writing {}", out.display()))?;
     Ok(())
+}
+
+/// A step line through `values` at `xs`: each value holds until the next session.
+fn steps(xs: &[f64], values: impl Iterator<Item = f64>) -> Vec<(f64, f64)> {
+    let mut out = Vec::new();
+    let mut last = None;
+    for (&x, v) in xs.iter().zip(values) {
+        if let Some(prev) = last {
+            out.push((x, prev));
+        }
+        out.push((x, v));
+        last = Some(v);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn steps_hold_each_value_until_the_next_session() {
+        let got = steps(&[0.0, 1.0, 3.0], [5.0, 6.0, 6.0].into_iter());
+        assert_eq!(
+            got,
+            vec![(0.0, 5.0), (1.0, 5.0), (1.0, 6.0), (3.0, 6.0), (3.0, 6.0)]
+        );
+        assert!(steps(&[], std::iter::empty()).is_empty());
+    }
 }
