@@ -110,7 +110,13 @@ fn operator_commands() {
     // Export: every kind parses as CSV with a header; the file appears whole.
     let out = ok(&["export", "-c", cfg]);
     assert!(out.contains("events: 14 rows"), "{out}");
-    for (kind, rows) in [("sessions", 22), ("timeline", 22), ("events", 14), ("images", 0)] {
+    for (kind, rows) in [
+        ("sessions", 22),
+        ("timeline", 22),
+        ("events", 14),
+        ("images", 0),
+        ("plants", 2),
+    ] {
         let path = d.join(format!("state/exports/{kind}.csv"));
         let mut r = csv::Reader::from_path(&path).unwrap();
         assert!(!r.headers().unwrap().is_empty());
@@ -143,7 +149,17 @@ fn operator_commands() {
         .map(|e| e.unwrap().file_name())
         .collect();
     assert_eq!(leftovers.len(), 1, "no temporary files left: {leftovers:?}");
-    let bad = phyllo(&["export", "-c", cfg, "--what", "plants"]);
+    let plants = std::fs::read_to_string(d.join("state/exports/plants.csv")).unwrap();
+    assert!(
+        plants.starts_with(
+            "plant,sessions,first_session,last_session,leaves_emerged,living,leaves_lost,phyllochron_days,events,last_emergence\r\n"
+        ),
+        "{plants}"
+    );
+    let gt1 = plants.lines().find(|l| l.starts_with("GT1,")).unwrap();
+    let cols: Vec<&str> = gt1.split(',').collect();
+    assert_eq!((cols[1], cols[6], cols[8]), ("11", "1", "7"), "{gt1}");
+    let bad = phyllo(&["export", "-c", cfg, "--what", "leaves"]);
     assert!(!bad.status.success());
 
     // Timeline: table, events, phyllochron, and a PNG.

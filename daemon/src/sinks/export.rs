@@ -9,7 +9,7 @@ use rusqlite::types::ValueRef;
 use rusqlite::Connection;
 
 /// The tables `phyllo export` can write.
-pub const KINDS: [&str; 4] = ["images", "sessions", "timeline", "events"];
+pub const KINDS: [&str; 5] = ["images", "sessions", "timeline", "events", "plants"];
 
 /// The query for one export kind; `?1` is the `--since` bound (or NULL).
 fn query(kind: &str) -> anyhow::Result<&'static str> {
@@ -50,6 +50,19 @@ fn query(kind: &str) -> anyhow::Result<&'static str> {
              FROM events e JOIN plants p ON p.id = e.plant_id
              WHERE ?1 IS NULL OR e.emerged_at >= ?1
              ORDER BY p.name, e.leaf"
+        }
+        // One row per plant: where its timeline stands now (a breeder's summary sheet).
+        "plants" => {
+            "SELECT p.name AS plant, p.sessions,
+                    (SELECT MIN(s.start) FROM sessions s WHERE s.plant_id = p.id) AS first_session,
+                    p.last_taken_at AS last_session, p.leaves_emerged, p.living,
+                    (SELECT COALESCE(MAX(s.leaves_lost), 0) FROM sessions s WHERE s.plant_id = p.id) AS leaves_lost,
+                    p.phyllochron_days,
+                    (SELECT COUNT(*) FROM events e WHERE e.plant_id = p.id) AS events,
+                    (SELECT MAX(e.emerged_at) FROM events e WHERE e.plant_id = p.id) AS last_emergence
+             FROM plants p
+             WHERE ?1 IS NULL OR p.last_taken_at >= ?1
+             ORDER BY p.name"
         }
         _ => bail!("unknown export '{kind}' (one of: {})", KINDS.join(", ")),
     })
@@ -124,9 +137,9 @@ mod tests {
     fn unknown_kind_is_refused() {
         let conn = Connection::open_in_memory().unwrap();
         let dir = tempfile::tempdir().unwrap();
-        let err = export(&conn, "plants", None, &dir.path().join("x.csv")).unwrap_err();
+        let err = export(&conn, "leaves", None, &dir.path().join("x.csv")).unwrap_err();
         assert!(
-            err.to_string().contains("images, sessions, timeline, events"),
+            err.to_string().contains("images, sessions, timeline, events, plants"),
             "{err}"
         );
         assert!(!dir.path().join("x.csv").exists());
