@@ -172,8 +172,9 @@ pub struct TimelineConfig {
     /// leaves; 1 disables smoothing.
     pub living_window: usize,
     /// Cost of one lost leaf when lasting drops of the side views' counts are
-    /// read as leaves that died, so later leaves keep their numbers: a one-leaf
-    /// drop must show in more than this many view-sessions; 0 reads no deaths.
+    /// read as leaves that died, so later leaves keep their numbers: the views
+    /// showing a one-leaf drop must outnumber those that do not by more than
+    /// this, summed over sessions; 0 reads no deaths.
     pub death_penalty: f64,
 }
 

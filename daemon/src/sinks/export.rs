@@ -139,7 +139,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let err = export(&conn, "leaves", None, &dir.path().join("x.csv")).unwrap_err();
         assert!(
-            err.to_string().contains("images, sessions, timeline, events, plants"),
+            err.to_string()
+                .contains("images, sessions, timeline, events, plants"),
             "{err}"
         );
         assert!(!dir.path().join("x.csv").exists());
