@@ -469,3 +469,98 @@ fn timeline_recovers_emergence_dates_from_true_counts() {
         }
     }
 }
+
+/// Old plants lose leaves while new ones emerge. Fed the true living-leaf
+/// counts in five side views, the timeline that reads lasting drops as leaves
+/// lost (`death_penalty`, the default) dates the leaves after a death, where
+/// the fit that reads none numbers them one low.
+#[test]
+fn timeline_reads_lost_leaves_from_true_counts() {
+    let (target, phyllo, gen) = binaries();
+    let (plants, days, seed, start_age) = (10u32, 18u32, 12u32, 30u32);
+    let frames_dir = target.join(format!("e2e-cache/truth-p{plants}-d{days}-s{seed}-a{start_age}"));
+    let out = Command::new(&gen)
+        .args(["sequence", "--out"])
+        .arg(&frames_dir)
+        .args(["--plants", &plants.to_string(), "--days", &days.to_string()])
+        .args(["--seed", &seed.to_string(), "--start-age", &start_age.to_string()])
+        .args(["--views", "108", "--frame-height", "64", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "phyllo-gen sequence: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let truth = read_csv(&frames_dir.join("truth.csv"));
+    let lost_days = truth
+        .iter()
+        .filter(|t| t["living_leaves"] != t["leaves_emerged"])
+        .count();
+    assert!(
+        lost_days > 0,
+        "the sequence should reach the plants' first deaths"
+    );
+    let mut obs = String::from("plant,timestamp,view,leaf_count\n");
+    for t in &truth {
+        for a in [0, 36, 72, 108, 144] {
+            obs += &format!(
+                "{},{}T{},SV_{a},{}\n",
+                t["plant"], t["date"], t["time"], t["living_leaves"]
+            );
+        }
+    }
+    let mut results = Vec::new();
+    for penalty in [0.0, 3.0] {
+        let dir = tempfile::tempdir().unwrap();
+        let cfg = dir.path().join("phyllo.toml");
+        std::fs::write(
+            &cfg,
+            format!(
+                "drop_dir = {:?}\ndatabase = {:?}\n[timeline]\ndeath_penalty = {penalty:?}\n",
+                dir.path().join("drop"),
+                dir.path().join("db.sqlite")
+            ),
+        )
+        .unwrap();
+        let obs_path = dir.path().join("truth-counts.csv");
+        std::fs::write(&obs_path, &obs).unwrap();
+        let st = Command::new(&phyllo)
+            .args(["import", "-c"])
+            .arg(&cfg)
+            .arg(&obs_path)
+            .output()
+            .unwrap();
+        assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+        let events_csv = dir.path().join("events.csv");
+        let st = Command::new(&phyllo)
+            .args(["export", "--what", "events", "-c"])
+            .arg(&cfg)
+            .arg("--out")
+            .arg(&events_csv)
+            .output()
+            .unwrap();
+        assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+        let (errs, dateable) = emergence_errors(&truth, &read_csv(&events_csv));
+        let mae = errs.iter().map(|e| e.abs()).sum::<f64>() / errs.len().max(1) as f64;
+        eprintln!(
+            "timeline with death_penalty {penalty}: {plants} plants x {days} days from age {start_age} \
+             ({lost_days} plant-days after a death); {} of {dateable} leaves dated, MAE {mae:.2} days",
+            errs.len()
+        );
+        results.push((errs.len(), mae));
+    }
+    let ((n_off, mae_off), (n_on, mae_on)) = (results[0], results[1]);
+    assert!(
+        n_on > n_off,
+        "reading deaths dates more leaves: {n_on} against {n_off}"
+    );
+    assert!(
+        mae_on < mae_off,
+        "and dates them better: {mae_on:.2} against {mae_off:.2} days"
+    );
+    assert!(
+        mae_on <= 1.0,
+        "emergence date MAE {mae_on:.2} days from true counts"
+    );
+}
