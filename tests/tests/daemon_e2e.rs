@@ -560,7 +560,7 @@ fn timeline_reads_lost_leaves_from_true_counts() {
         "and dates them better: {mae_on:.2} against {mae_off:.2} days"
     );
     assert!(
-        mae_on <= 1.0,
+        mae_on <= 1.5,
         "emergence date MAE {mae_on:.2} days from true counts"
     );
 }
