@@ -169,6 +169,19 @@ fn operator_commands() {
     assert!(out.contains("phyllochron:"), "{out}");
     let img = image::open(&png).unwrap();
     assert_eq!((img.width(), img.height()), (1000, 600));
+    // Every plant's plot at once.
+    let plots = d.join("plots");
+    let out = phyllo(&["timeline", "-c", cfg, "--plots", plots.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("2 plots written"));
+    for p in ["GT1", "GT2"] {
+        let img = image::open(plots.join(format!("{p}.png"))).unwrap();
+        assert_eq!((img.width(), img.height()), (1000, 600));
+    }
+    assert!(
+        !phyllo(&["timeline", "-c", cfg]).status.success(),
+        "a plant or --plots"
+    );
     let out = phyllo(&["timeline", "-c", cfg, "NOPE"]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("no plant 'NOPE'"));
 

@@ -1,8 +1,9 @@
-//! `phyllo timeline --config FILE PLANT [--plot OUT.png] [--json]`.
+//! `phyllo timeline --config FILE PLANT [--plot OUT.png] [--json]`, or
+//! `phyllo timeline --config FILE --plots DIR` for every plant's plot.
 
 use std::path::PathBuf;
 
-use anyhow::bail;
+use anyhow::{bail, Context};
 
 use super::ConfigArg;
 use crate::store::{PlantTimeline, Store};
@@ -12,11 +13,15 @@ use crate::store::{PlantTimeline, Store};
 pub struct Args {
     #[command(flatten)]
     config: ConfigArg,
-    /// Plant id.
-    plant: String,
+    /// Plant id (leave out with --plots to draw every plant).
+    #[arg(required_unless_present = "plots")]
+    plant: Option<String>,
     /// Also draw the timeline into this PNG.
-    #[arg(long, value_name = "OUT.png")]
+    #[arg(long, value_name = "OUT.png", requires = "plant")]
     plot: Option<PathBuf>,
+    /// Draw every plant's timeline into DIR/<plant>.png.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["plant", "plot", "json"])]
+    plots: Option<PathBuf>,
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
@@ -26,12 +31,19 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let store = Store::open_read_only(&config.database)?;
-    let Some(t) = store.plant_timeline(&args.plant)? else {
+    if let Some(dir) = &args.plots {
+        return plot_all(&store, dir);
+    }
+    let plant = args
+        .plant
+        .as_deref()
+        .expect("clap requires a plant without --plots");
+    let Some(t) = store.plant_timeline(plant)? else {
         let plants = store.plants()?;
         let some: Vec<&str> = plants.iter().take(10).map(|s| s.as_str()).collect();
         bail!(
             "no plant '{}' in {} ({} plants, e.g. {})",
-            args.plant,
+            plant,
             config.database.display(),
             plants.len(),
             some.join(", ")
@@ -47,6 +59,53 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("plot written to {}", out.display());
     }
     Ok(())
+}
+
+/// Draws every plant with a session into `dir`, one PNG per plant.
+fn plot_all(store: &Store, dir: &std::path::Path) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let (mut drawn, mut empty) = (0, 0);
+    let mut used = std::collections::HashSet::new();
+    for plant in store.plants()? {
+        match store.plant_timeline(&plant)? {
+            Some(t) if !t.sessions.is_empty() => {
+                // Two ids that differ only in replaced characters must not share a file.
+                let mut stem = file_stem(&plant);
+                let mut n = 1;
+                while !used.insert(stem.clone()) {
+                    n += 1;
+                    stem = format!("{}_{n}", file_stem(&plant));
+                }
+                crate::sinks::plot::plot(&t, &dir.join(format!("{stem}.png")))?;
+                drawn += 1;
+            }
+            _ => empty += 1,
+        }
+    }
+    eprintln!(
+        "{drawn} plots written to {} ({empty} plants without a counted session)",
+        dir.display()
+    );
+    Ok(())
+}
+
+/// A plant id as a file name: anything but letters, digits, `-`, `_` and `.` becomes `_`.
+fn file_stem(plant: &str) -> String {
+    let stem: String = plant
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    // A leading dot would hide the file; `..` would name the parent.
+    match stem.strip_prefix('.') {
+        Some(rest) => format!("_{rest}"),
+        None => stem,
+    }
 }
 
 /// The timeline as a text table.
@@ -85,4 +144,16 @@ pub fn render(t: &PlantTimeline) -> String {
         None => s += "phyllochron: n/a (fewer than two emergence events)\n",
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::file_stem;
+
+    #[test]
+    fn plant_ids_become_plain_file_names() {
+        assert_eq!(file_stem("402-348-N276-WW-1"), "402-348-N276-WW-1");
+        assert_eq!(file_stem("a/b c"), "a_b_c");
+        assert_eq!(file_stem(".."), "_.");
+    }
 }
