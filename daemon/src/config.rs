@@ -190,12 +190,24 @@ impl Default for TimelineConfig {
 }
 
 /// `[export]`: defaults for `phyllo export` (and the nightly timer).
-#[derive(Debug, Clone, Default, Deserialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ExportConfig {
     /// Directory for `phyllo export` without `--out`: one `<what>.csv` per
     /// table. Unset means `exports/` beside the database.
     pub dir: Option<PathBuf>,
+    /// Whether `phyllo export` without `--out` also draws every plant's
+    /// timeline into `<dir>/plots/<plant>.png`.
+    pub plots: bool,
+}
+
+impl Default for ExportConfig {
+    fn default() -> Self {
+        Self {
+            dir: None,
+            plots: true,
+        }
+    }
 }
 
 /// `[feed]`: retention of the feed `phyllo tail` follows. The feed repeats
@@ -384,6 +396,7 @@ mod tests {
             "death_penalty",
             "[export]",
             "dir",
+            "plots",
             "[feed]",
             "keep_days",
         ];

@@ -109,6 +109,14 @@ fn operator_commands() {
     // Export: every kind parses as CSV with a header; the file appears whole.
     let out = ok(&["export", "-c", cfg]);
     assert!(out.contains("events: 12 rows"), "{out}");
+    // ... and every plant's plot beside the tables, each renamed into place.
+    assert!(out.contains("plots: 2 plants"), "{out}");
+    let mut drawn: Vec<String> = std::fs::read_dir(d.join("state/exports/plots"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    drawn.sort();
+    assert_eq!(drawn, ["GT1.png", "GT2.png"]);
     for (kind, rows) in [
         ("sessions", 22),
         ("timeline", 22),

@@ -38,6 +38,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     let store = Store::open_read_only(&config.database)?;
+    let nightly = args.out.is_none();
     let jobs: Vec<(String, PathBuf)> = match args.out {
         Some(out) => vec![(args.what.clone(), out)],
         None => {
@@ -51,6 +52,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for (kind, out) in jobs {
         let n = export(store.conn(), &kind, since.as_deref(), &out)?;
         println!("{kind}: {n} rows → {}", out.display());
+    }
+    // The nightly run also leaves every plant's plot beside the tables.
+    if nightly && config.export.plots {
+        let dir = config.export_dir().join("plots");
+        let (drawn, _) = crate::sinks::plot::plot_all(&store, &dir)?;
+        println!("plots: {drawn} plants → {}", dir.display());
     }
     Ok(())
 }

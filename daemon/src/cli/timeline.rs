@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 
 use super::ConfigArg;
 use crate::store::{PlantTimeline, Store};
@@ -32,7 +32,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let store = Store::open_read_only(&config.database)?;
     if let Some(dir) = &args.plots {
-        return plot_all(&store, dir);
+        let (drawn, empty) = crate::sinks::plot::plot_all(&store, dir)?;
+        eprintln!(
+            "{drawn} plots written to {} ({empty} plants without a counted session)",
+            dir.display()
+        );
+        return Ok(());
     }
     let plant = args
         .plant
@@ -59,53 +64,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("plot written to {}", out.display());
     }
     Ok(())
-}
-
-/// Draws every plant with a session into `dir`, one PNG per plant.
-fn plot_all(store: &Store, dir: &std::path::Path) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let (mut drawn, mut empty) = (0, 0);
-    let mut used = std::collections::HashSet::new();
-    for plant in store.plants()? {
-        match store.plant_timeline(&plant)? {
-            Some(t) if !t.sessions.is_empty() => {
-                // Two ids that differ only in replaced characters must not share a file.
-                let mut stem = file_stem(&plant);
-                let mut n = 1;
-                while !used.insert(stem.clone()) {
-                    n += 1;
-                    stem = format!("{}_{n}", file_stem(&plant));
-                }
-                crate::sinks::plot::plot(&t, &dir.join(format!("{stem}.png")))?;
-                drawn += 1;
-            }
-            _ => empty += 1,
-        }
-    }
-    eprintln!(
-        "{drawn} plots written to {} ({empty} plants without a counted session)",
-        dir.display()
-    );
-    Ok(())
-}
-
-/// A plant id as a file name: anything but letters, digits, `-`, `_` and `.` becomes `_`.
-fn file_stem(plant: &str) -> String {
-    let stem: String = plant
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    // A leading dot would hide the file; `..` would name the parent.
-    match stem.strip_prefix('.') {
-        Some(rest) => format!("_{rest}"),
-        None => stem,
-    }
 }
 
 /// The timeline as a text table.
@@ -144,16 +102,4 @@ pub fn render(t: &PlantTimeline) -> String {
         None => s += "phyllochron: n/a (fewer than two emergence events)\n",
     }
     s
-}
-
-#[cfg(test)]
-mod tests {
-    use super::file_stem;
-
-    #[test]
-    fn plant_ids_become_plain_file_names() {
-        assert_eq!(file_stem("402-348-N276-WW-1"), "402-348-N276-WW-1");
-        assert_eq!(file_stem("a/b c"), "a_b_c");
-        assert_eq!(file_stem(".."), "_.");
-    }
 }

@@ -139,6 +139,56 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Draws every plant with a session into `dir`, one PNG per plant. Returns
+/// (plots drawn, plants without a counted session).
+pub fn plot_all(store: &crate::store::Store, dir: &Path) -> anyhow::Result<(usize, usize)> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let (mut drawn, mut empty) = (0, 0);
+    let mut used = std::collections::HashSet::new();
+    for plant in store.plants()? {
+        match store.plant_timeline(&plant)? {
+            Some(t) if !t.sessions.is_empty() => {
+                // Two ids that differ only in replaced characters must not share a file.
+                let mut stem = file_stem(&plant);
+                let mut n = 1;
+                while !used.insert(stem.clone()) {
+                    n += 1;
+                    stem = format!("{}_{n}", file_stem(&plant));
+                }
+                // Drawn beside and renamed into place, so a reader never opens half a PNG
+                // (the hidden name keeps the extension the encoder goes by).
+                let tmp = dir.join(format!(".{stem}.partial.png"));
+                let out = dir.join(format!("{stem}.png"));
+                plot(&t, &tmp)?;
+                std::fs::rename(&tmp, &out)
+                    .with_context(|| format!("renaming {} to {}", tmp.display(), out.display()))?;
+                drawn += 1;
+            }
+            _ => empty += 1,
+        }
+    }
+    Ok((drawn, empty))
+}
+
+/// A plant id as a file name: anything but letters, digits, `-`, `_` and `.` becomes `_`.
+fn file_stem(plant: &str) -> String {
+    let stem: String = plant
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    // A leading dot would hide the file; `..` would name the parent.
+    match stem.strip_prefix('.') {
+        Some(rest) => format!("_{rest}"),
+        None => stem,
+    }
+}
+
 /// A step line through `values` at `xs`: each value holds until the next session.
 fn steps(xs: &[f64], values: impl Iterator<Item = f64>) -> Vec<(f64, f64)> {
     let mut out = Vec::new();
@@ -156,6 +206,13 @@ fn steps(xs: &[f64], values: impl Iterator<Item = f64>) -> Vec<(f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn plant_ids_become_plain_file_names() {
+        assert_eq!(file_stem("402-348-N276-WW-1"), "402-348-N276-WW-1");
+        assert_eq!(file_stem("a/b c"), "a_b_c");
+        assert_eq!(file_stem(".."), "_.");
+    }
 
     #[test]
     fn steps_hold_each_value_until_the_next_session() {
