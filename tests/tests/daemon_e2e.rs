@@ -111,6 +111,77 @@ fn emergence_errors(
     (errs, dateable)
 }
 
+/// The truth.csv of a growth sequence, rendered (once, cached under `target`)
+/// as one tiny view a day: only the truth matters to the timeline tests.
+fn sequence_truth(
+    target: &Path,
+    gen: &Path,
+    plants: u32,
+    days: u32,
+    seed: u32,
+    start_age: u32,
+) -> Vec<BTreeMap<String, String>> {
+    let dir = target.join(format!("e2e-cache/truth-p{plants}-d{days}-s{seed}-a{start_age}"));
+    let out = Command::new(gen)
+        .args(["sequence", "--out"])
+        .arg(&dir)
+        .args(["--plants", &plants.to_string(), "--days", &days.to_string()])
+        .args(["--seed", &seed.to_string(), "--start-age", &start_age.to_string()])
+        .args(["--views", "108", "--frame-height", "64", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "phyllo-gen sequence: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    read_csv(&dir.join("truth.csv"))
+}
+
+/// Imports `obs` (a `phyllo import` CSV) into a fresh store whose config ends
+/// with `settings`, and returns its exported emergence events.
+fn import_and_export_events(phyllo: &Path, settings: &str, obs: &str) -> Vec<BTreeMap<String, String>> {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("phyllo.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "drop_dir = {:?}\ndatabase = {:?}\n{settings}",
+            dir.path().join("drop"),
+            dir.path().join("db.sqlite")
+        ),
+    )
+    .unwrap();
+    let obs_path = dir.path().join("counts.csv");
+    std::fs::write(&obs_path, obs).unwrap();
+    let events_csv = dir.path().join("events.csv");
+    for args in [
+        vec![
+            "import".as_ref(),
+            "-c".as_ref(),
+            cfg.as_os_str(),
+            obs_path.as_os_str(),
+        ],
+        vec![
+            "export".as_ref(),
+            "--what".as_ref(),
+            "events".as_ref(),
+            "-c".as_ref(),
+            cfg.as_os_str(),
+            "--out".as_ref(),
+            events_csv.as_os_str(),
+        ],
+    ] {
+        let st = Command::new(phyllo).args(&args).output().unwrap();
+        assert!(
+            st.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+    }
+    read_csv(&events_csv)
+}
+
 fn read_csv(path: &Path) -> Vec<BTreeMap<String, String>> {
     let mut r = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let headers = r.headers().unwrap().clone();
@@ -384,44 +455,12 @@ fn daemon_counts_a_generated_sequence() {
 fn timeline_recovers_emergence_dates_from_true_counts() {
     let (target, phyllo, gen) = binaries();
     let (plants, days, seed) = (10u32, 21u32, 11u32);
-    // One tiny view per day: only truth.csv matters here.
-    let frames_dir = target.join(format!("e2e-cache/truth-p{plants}-d{days}-s{seed}"));
-    let out = Command::new(&gen)
-        .args(["sequence", "--out"])
-        .arg(&frames_dir)
-        .args([
-            "--plants",
-            &plants.to_string(),
-            "--days",
-            &days.to_string(),
-            "--seed",
-            &seed.to_string(),
-        ])
-        .args(["--views", "108", "--frame-height", "64", "--quiet"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "phyllo-gen sequence: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let truth = read_csv(&frames_dir.join("truth.csv"));
+    let truth = sequence_truth(&target, &gen, plants, days, seed, 14);
 
     for (label, noisy) in [
         ("exact counts", false),
         ("counts with +-1 noise on 1/3 of days", true),
     ] {
-        let dir = tempfile::tempdir().unwrap();
-        let cfg = dir.path().join("phyllo.toml");
-        std::fs::write(
-            &cfg,
-            format!(
-                "drop_dir = {:?}\ndatabase = {:?}\n",
-                dir.path().join("drop"),
-                dir.path().join("db.sqlite")
-            ),
-        )
-        .unwrap();
         let mut obs = String::from("plant,timestamp,view,leaf_count\n");
         let mut rng = 0x9e3779b97f4a7c15u64;
         for t in &truth {
@@ -434,25 +473,7 @@ fn timeline_recovers_emergence_dates_from_true_counts() {
             }
             obs += &format!("{},{}T{},SV_108,{}\n", t["plant"], t["date"], t["time"], c.max(0));
         }
-        let obs_path = dir.path().join("truth-counts.csv");
-        std::fs::write(&obs_path, obs).unwrap();
-        let st = Command::new(&phyllo)
-            .args(["import", "-c"])
-            .arg(&cfg)
-            .arg(&obs_path)
-            .output()
-            .unwrap();
-        assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
-        let events_csv = dir.path().join("events.csv");
-        let st = Command::new(&phyllo)
-            .args(["export", "--what", "events", "-c"])
-            .arg(&cfg)
-            .arg("--out")
-            .arg(&events_csv)
-            .output()
-            .unwrap();
-        assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
-        let events = read_csv(&events_csv);
+        let events = import_and_export_events(&phyllo, "", &obs);
         let (errs, dateable) = emergence_errors(&truth, &events);
         let mae = errs.iter().map(|e| e.abs()).sum::<f64>() / errs.len().max(1) as f64;
         let bias = errs.iter().sum::<f64>() / errs.len().max(1) as f64;
@@ -478,21 +499,7 @@ fn timeline_recovers_emergence_dates_from_true_counts() {
 fn timeline_reads_lost_leaves_from_true_counts() {
     let (target, phyllo, gen) = binaries();
     let (plants, days, seed, start_age) = (10u32, 18u32, 12u32, 30u32);
-    let frames_dir = target.join(format!("e2e-cache/truth-p{plants}-d{days}-s{seed}-a{start_age}"));
-    let out = Command::new(&gen)
-        .args(["sequence", "--out"])
-        .arg(&frames_dir)
-        .args(["--plants", &plants.to_string(), "--days", &days.to_string()])
-        .args(["--seed", &seed.to_string(), "--start-age", &start_age.to_string()])
-        .args(["--views", "108", "--frame-height", "64", "--quiet"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "phyllo-gen sequence: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let truth = read_csv(&frames_dir.join("truth.csv"));
+    let truth = sequence_truth(&target, &gen, plants, days, seed, start_age);
     let lost_days = truth
         .iter()
         .filter(|t| t["living_leaves"] != t["leaves_emerged"])
@@ -512,36 +519,9 @@ fn timeline_reads_lost_leaves_from_true_counts() {
     }
     let mut results = Vec::new();
     for penalty in [0.0, 3.0] {
-        let dir = tempfile::tempdir().unwrap();
-        let cfg = dir.path().join("phyllo.toml");
-        std::fs::write(
-            &cfg,
-            format!(
-                "drop_dir = {:?}\ndatabase = {:?}\n[timeline]\ndeath_penalty = {penalty:?}\n",
-                dir.path().join("drop"),
-                dir.path().join("db.sqlite")
-            ),
-        )
-        .unwrap();
-        let obs_path = dir.path().join("truth-counts.csv");
-        std::fs::write(&obs_path, &obs).unwrap();
-        let st = Command::new(&phyllo)
-            .args(["import", "-c"])
-            .arg(&cfg)
-            .arg(&obs_path)
-            .output()
-            .unwrap();
-        assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
-        let events_csv = dir.path().join("events.csv");
-        let st = Command::new(&phyllo)
-            .args(["export", "--what", "events", "-c"])
-            .arg(&cfg)
-            .arg("--out")
-            .arg(&events_csv)
-            .output()
-            .unwrap();
-        assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
-        let (errs, dateable) = emergence_errors(&truth, &read_csv(&events_csv));
+        let settings = format!("[timeline]\ndeath_penalty = {penalty:?}\n");
+        let events = import_and_export_events(&phyllo, &settings, &obs);
+        let (errs, dateable) = emergence_errors(&truth, &events);
         let mae = errs.iter().map(|e| e.abs()).sum::<f64>() / errs.len().max(1) as f64;
         eprintln!(
             "timeline with death_penalty {penalty}: {plants} plants x {days} days from age {start_age} \
