@@ -9,6 +9,7 @@ use std::sync::Once;
 
 use anyhow::{anyhow, Context};
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::FontStyle;
 
 use crate::store::{parse_iso, PlantTimeline};
@@ -25,7 +26,8 @@ pub fn register_font() {
 }
 
 /// Draws the timeline: per-view counts (grey), fused counts (blue), leaves
-/// emerged (red steps), living leaves (green), emergence events (red ticks),
+/// emerged (red steps), living leaves (green), emergence events (red ticks
+/// numbered with the leaf),
 /// and leaves read as lost (brown steps) once a plant has lost one.
 /// The x axis is days since the first session.
 pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
@@ -123,6 +125,17 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
             .draw_series(std::iter::once(PathElement::new(
                 vec![(x, y - 0.4), (x, y + 0.4)],
                 RED.stroke_width(2),
+            )))
+            .map_err(err)?;
+        // The leaf's number above its tick, so a reader sees which leaf came when.
+        chart
+            .draw_series(std::iter::once(Text::new(
+                leaf.to_string(),
+                (x, y + 0.75),
+                ("sans-serif", 13)
+                    .into_font()
+                    .color(&RED)
+                    .pos(Pos::new(HPos::Center, VPos::Bottom)),
             )))
             .map_err(err)?;
     }
