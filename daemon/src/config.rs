@@ -329,6 +329,8 @@ mod tests {
         for bad in [
             "[timeline]\nfusion = \"biggest\"",
             "[timeline]\nliving_window = 2",
+            "[timeline]\ndeath_penalty = -1",
+            "[timeline]\ndeath_penalty = nan",
             "[inference]\nworkers = 0",
             "[feed]\nkeep_days = -1",
             "[[names.patterns]]\nname = \"x\"\nregex = \"(?P<plant>.*)\"",
