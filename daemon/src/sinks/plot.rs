@@ -25,7 +25,7 @@ pub fn register_font() {
     });
 }
 
-/// Draws the timeline: per-view counts (grey), fused counts (blue), leaves
+/// Draws the timeline: per-view counts (grey; top views hollow), fused counts (blue), leaves
 /// emerged (red steps), living leaves (green), emergence events (red ticks
 /// numbered with the leaf),
 /// and leaves read as lost (brown steps) once a plant has lost one.
@@ -72,21 +72,38 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
         .label_style(("sans-serif", 14))
         .draw()
         .map_err(err)?;
-    let views: Vec<(f64, f64)> = t
+    // Side and top views apart: the top view sees a few leaves fewer, and its
+    // counts drawn like the side views' would read as a spread of the count.
+    let grey = RGBColor(150, 150, 150);
+    type ViewPoint = (f64, f64, bool);
+    let (top, side): (Vec<ViewPoint>, Vec<ViewPoint>) = t
         .sessions
         .iter()
         .zip(&xs)
-        .flat_map(|(s, &x)| s.views.values().map(move |&c| (x, c)))
-        .collect();
+        .flat_map(|(s, &x)| {
+            s.views
+                .iter()
+                .map(move |(v, &c)| (x, c, crate::names::View::parse(v).is_top()))
+        })
+        .partition(|p| p.2);
     chart
         .draw_series(
-            views
-                .iter()
-                .map(|&p| Circle::new(p, 3, RGBColor(150, 150, 150).filled())),
+            side.iter()
+                .map(|&(x, c, _)| Circle::new((x, c), 3, grey.filled())),
         )
         .map_err(err)?
-        .label("per view")
-        .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(150, 150, 150).filled()));
+        .label("side view")
+        .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.filled()));
+    if !top.is_empty() {
+        chart
+            .draw_series(
+                top.iter()
+                    .map(|&(x, c, _)| Circle::new((x, c), 3, grey.stroke_width(1))),
+            )
+            .map_err(err)?
+            .label("top view")
+            .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.stroke_width(1)));
+    }
     let fused: Vec<(f64, f64)> = t.sessions.iter().zip(&xs).map(|(s, &x)| (x, s.fused)).collect();
     chart
         .draw_series(fused.iter().map(|&p| Circle::new(p, 5, BLUE.filled())))
