@@ -12,7 +12,8 @@
 #   sequence, rendered only when SEQUENCE_DIR has no truth.csv; a partial
 #   render resumes), MODEL [models/phyllo.onnx], THREADS [2],
 #   RULES ["second-max-side median-side max-side mean-side max view:SV_108"], the first the daemon's default;
-#   a rule may carry [timeline] settings after commas: "second-max-side,death_penalty=0".
+#   a rule may carry [timeline] settings after commas: "second-max-side,death_penalty=0";
+#   KEEP [unset]: keep each rule's store in KEEP/<n>/ (0: the first rule), to plot any plant after.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 plants=${PLANTS:-36}
@@ -38,4 +39,4 @@ if [ ! -s "$counts" ] || [ "$(wc -l <"$counts")" -ne "$frames" ]; then
 fi
 # shellcheck disable=SC2086 # RULES is a word list
 python3 "$root/scripts/timeline_accuracy.py" --phyllo "$bin/phyllo" --sequence "$dir" --counts "$counts" \
-  --rules ${RULES:-second-max-side median-side max-side mean-side max view:SV_108}
+  --rules ${RULES:-second-max-side median-side max-side mean-side max view:SV_108} ${KEEP:+--keep "$KEEP"}

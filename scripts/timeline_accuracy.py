@@ -16,6 +16,7 @@ import json
 import math
 import os
 import re
+import shutil
 import subprocess
 import tempfile
 
@@ -186,6 +187,9 @@ def main():
     ap.add_argument("--counts", required=True)
     ap.add_argument("--rules", nargs="+", required=True,
                     help="fusion specs RULE[,KEY=VALUE...] ([timeline] settings), the first compared with the rest")
+    ap.add_argument("--keep", metavar="DIR",
+                    help="keep each run's store in DIR/<n>/ (n counts the rules, then the truth run), "
+                         "e.g. for `phyllo timeline -c DIR/0/phyllo.toml PLANT --plot OUT.png`")
     a = ap.parse_args()
     truth = read_csv(os.path.join(a.sequence, "truth.csv"))
     obs = observations(a.counts)
@@ -204,7 +208,13 @@ def main():
     print("|---|---|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|")
     runs = [("model", r, obs) for r in a.rules] + [("truth", a.rules[0], truth_observations(truth))]
     by_age, per_plant, per_plant_emerged = None, [], []
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as scratch:
+        # With --keep the stores stay, so any plant's timeline can be looked at after.
+        tmp = a.keep or scratch
+        if a.keep:
+            os.makedirs(a.keep, exist_ok=True)
+            for i in range(len(runs)):
+                shutil.rmtree(os.path.join(a.keep, str(i)), ignore_errors=True)
         for i, (source, rule, o) in enumerate(runs):
             timeline, events = run_timeline(a.phyllo, o, rule, os.path.join(tmp, str(i)))
             if i == 0:

@@ -184,7 +184,7 @@ impl Default for TimelineConfig {
             fusion: "second-max-side".into(),
             session_gap_minutes: 120.0,
             living_window: 3,
-            death_penalty: 3.0,
+            death_penalty: 2.5,
         }
     }
 }
