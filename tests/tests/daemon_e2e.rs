@@ -122,12 +122,27 @@ fn sequence_truth(
     start_age: u32,
 ) -> Vec<BTreeMap<String, String>> {
     let dir = target.join(format!("e2e-cache/truth-p{plants}-d{days}-s{seed}-a{start_age}"));
+    let age = start_age.to_string();
+    let extra = [
+        "--start-age",
+        age.as_str(),
+        "--views",
+        "108",
+        "--frame-height",
+        "64",
+    ];
+    generate_sequence(gen, &dir, plants, days, seed, &extra);
+    read_csv(&dir.join("truth.csv"))
+}
+
+/// Runs `phyllo-gen sequence` into `dir` (a partial render resumes) with `extra` options.
+fn generate_sequence(gen: &Path, dir: &Path, plants: u32, days: u32, seed: u32, extra: &[&str]) {
     let out = Command::new(gen)
         .args(["sequence", "--out"])
-        .arg(&dir)
+        .arg(dir)
         .args(["--plants", &plants.to_string(), "--days", &days.to_string()])
-        .args(["--seed", &seed.to_string(), "--start-age", &start_age.to_string()])
-        .args(["--views", "108", "--frame-height", "64", "--quiet"])
+        .args(["--seed", &seed.to_string(), "--quiet"])
+        .args(extra)
         .output()
         .unwrap();
     assert!(
@@ -135,7 +150,6 @@ fn sequence_truth(
         "phyllo-gen sequence: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    read_csv(&dir.join("truth.csv"))
 }
 
 /// Imports `obs` (a `phyllo import` CSV) into a fresh store whose config ends
@@ -203,25 +217,7 @@ fn daemon_counts_a_generated_sequence() {
     let (plants, days, seed) = (env_or("PHYLLO_E2E_PLANTS", 3), env_or("PHYLLO_E2E_DAYS", 4), 11);
     let frames_dir = target.join(format!("e2e-cache/sequence-p{plants}-d{days}-s{seed}"));
     let t0 = Instant::now();
-    let out = Command::new(&gen)
-        .args(["sequence", "--out"])
-        .arg(&frames_dir)
-        .args([
-            "--plants",
-            &plants.to_string(),
-            "--days",
-            &days.to_string(),
-            "--seed",
-            &seed.to_string(),
-            "--quiet",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "phyllo-gen sequence: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    generate_sequence(&gen, &frames_dir, plants, days, seed, &[]);
     eprintln!("generated {plants} plants x {days} days in {:.0?}", t0.elapsed());
     let mut frames: Vec<PathBuf> = std::fs::read_dir(&frames_dir)
         .unwrap()
