@@ -199,6 +199,10 @@ fn operator_commands() {
         out.contains("never started") && out.contains("132 imported counts; 2 plants"),
         "{out}"
     );
+    assert!(
+        out.contains("timeline:  12 leaves dated; 0 leaves lost on 0 plants; fit fusion=second-max-side;"),
+        "{out}"
+    );
 
     // Bad config: named file, clear problem, non-zero exit.
     let badcfg = d.join("bad.toml");

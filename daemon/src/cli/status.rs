@@ -22,6 +22,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let store = Store::open_read_only(&config.database)?;
     let svc = store.service()?;
     let counts = store.image_counts()?;
+    let timeline = store.timeline_summary()?;
     let last = store.last_image()?;
     let failures = store.recent_failures(5)?;
     // Counts made with other settings than the service's (an upgrade since):
@@ -47,6 +48,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "state": state,
             "service": svc,
             "images": counts,
+            "timeline": timeline,
             "last_image": last,
             "recent_failures": failures,
             "counts_with_other_settings": other_settings,
@@ -70,6 +72,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!(
         "images:    {} counted, {} duplicates, {} failed; {} imported counts; {} plants",
         counts.counted, counts.duplicate, counts.failed, counts.imported, counts.plants
+    );
+    println!(
+        "timeline:  {} leaves dated; {} leaves lost on {} plants; fit {}",
+        timeline.events,
+        timeline.leaves_lost,
+        timeline.plants_with_lost_leaves,
+        timeline.settings.as_deref().unwrap_or("-")
     );
     match other_settings {
         Some(0) => println!("settings:  every count made with the service's settings"),

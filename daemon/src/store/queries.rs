@@ -52,6 +52,19 @@ pub struct ImageCounts {
     pub plants: i64,
 }
 
+/// Where the timelines stand, for `phyllo status`.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct TimelineSummary {
+    /// Leaf emergence events over every plant.
+    pub events: i64,
+    /// Plants with at least one leaf read as lost.
+    pub plants_with_lost_leaves: i64,
+    /// Leaves read as lost over every plant.
+    pub leaves_lost: f64,
+    /// The `[timeline]` settings the stored fits were made with.
+    pub settings: Option<String>,
+}
+
 /// The most recently recorded image.
 #[derive(Debug, Clone, Serialize)]
 pub struct LastImage {
@@ -159,6 +172,30 @@ impl Store {
             .conn
             .query_row("SELECT COUNT(*) FROM plants", [], |r| r.get(0))?;
         Ok(c)
+    }
+
+    /// Events, leaves lost and the fit's settings over every plant.
+    pub fn timeline_summary(&self) -> anyhow::Result<TimelineSummary> {
+        let events = self
+            .conn
+            .query_row("SELECT COUNT(*) FROM events", [], |r| r.get(0))?;
+        // A plant's leaves lost by its last session: the largest of its sessions'.
+        let (plants_with_lost_leaves, leaves_lost) = self.conn.query_row(
+            "SELECT COUNT(*), COALESCE(SUM(lost), 0) FROM
+               (SELECT MAX(leaves_lost) AS lost FROM sessions GROUP BY plant_id) WHERE lost > 0",
+            [],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )?;
+        let settings = self
+            .conn
+            .query_row("SELECT value FROM meta WHERE key = 'timeline'", [], |r| r.get(0))
+            .optional()?;
+        Ok(TimelineSummary {
+            events,
+            plants_with_lost_leaves,
+            leaves_lost,
+            settings,
+        })
     }
 
     /// The most recently recorded image.
