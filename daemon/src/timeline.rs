@@ -109,13 +109,18 @@ impl FusionRule {
     }
 }
 
-/// The side views' counts; every count when a session has only top views.
-fn side_counts(views: &[(View, f64)]) -> Vec<f64> {
-    let side: Vec<f64> = views
+/// The side views' counts (none when a session has only top views).
+fn side_views(views: &[(View, f64)]) -> Vec<f64> {
+    views
         .iter()
         .filter(|(v, _)| !v.is_top())
         .map(|(_, c)| *c)
-        .collect();
+        .collect()
+}
+
+/// The side views' counts; every count when a session has only top views.
+fn side_counts(views: &[(View, f64)]) -> Vec<f64> {
+    let side = side_views(views);
     if side.is_empty() {
         views.iter().map(|(_, c)| *c).collect()
     } else {
@@ -385,16 +390,7 @@ pub fn compute(obs: &[Obs], p: &TimelineParams) -> Timeline {
     // so one view's miscount is outweighed by the others. A top view is none:
     // it sees a few leaves fewer, and a day imaged from the top only would
     // read as leaves lost.
-    let evidence: Vec<Vec<f64>> = sessions
-        .iter()
-        .map(|s| {
-            s.views
-                .iter()
-                .filter(|(v, _)| !v.is_top())
-                .map(|(_, c)| *c)
-                .collect()
-        })
-        .collect();
+    let evidence: Vec<Vec<f64>> = sessions.iter().map(|s| side_views(&s.views)).collect();
     let lost = deaths(&evidence, p.death_penalty);
     let with_lost: Vec<f64> = fused.iter().zip(&lost).map(|(f, l)| f + l).collect();
     let emerged = isotonic(&with_lost, &weights);

@@ -25,10 +25,10 @@ pub fn register_font() {
     });
 }
 
-/// Draws the timeline: per-view counts (grey; top views hollow), fused counts (blue), leaves
-/// emerged (red steps), living leaves (green), emergence events (red ticks
-/// numbered with the leaf),
-/// and leaves read as lost (brown steps) once a plant has lost one.
+/// Draws the timeline: per-view counts (grey; top views hollow), fused counts
+/// (blue), leaves emerged (red steps), living leaves (green), emergence events
+/// (red ticks numbered with the leaf), and leaves read as lost (brown steps)
+/// once a plant has lost one.
 /// The x axis is days since the first session.
 pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
     register_font();
@@ -75,31 +75,25 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
     // Side and top views apart: the top view sees a few leaves fewer, and its
     // counts drawn like the side views' would read as a spread of the count.
     let grey = RGBColor(150, 150, 150);
-    type ViewPoint = (f64, f64, bool);
-    let (top, side): (Vec<ViewPoint>, Vec<ViewPoint>) = t
-        .sessions
-        .iter()
-        .zip(&xs)
-        .flat_map(|(s, &x)| {
-            s.views
-                .iter()
-                .map(move |(v, &c)| (x, c, crate::names::View::parse(v).is_top()))
-        })
-        .partition(|p| p.2);
+    let (mut side, mut top) = (Vec::new(), Vec::new());
+    for (s, &x) in t.sessions.iter().zip(&xs) {
+        for (v, &c) in &s.views {
+            let points = if crate::names::View::parse(v).is_top() {
+                &mut top
+            } else {
+                &mut side
+            };
+            points.push((x, c));
+        }
+    }
     chart
-        .draw_series(
-            side.iter()
-                .map(|&(x, c, _)| Circle::new((x, c), 3, grey.filled())),
-        )
+        .draw_series(side.iter().map(|&p| Circle::new(p, 3, grey.filled())))
         .map_err(err)?
         .label("side view")
         .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.filled()));
     if !top.is_empty() {
         chart
-            .draw_series(
-                top.iter()
-                    .map(|&(x, c, _)| Circle::new((x, c), 3, grey.stroke_width(1))),
-            )
+            .draw_series(top.iter().map(|&p| Circle::new(p, 3, grey.stroke_width(1))))
             .map_err(err)?
             .label("top view")
             .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.stroke_width(1)));

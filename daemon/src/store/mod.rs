@@ -177,10 +177,7 @@ impl Store {
         // Changed timeline settings (in the config, or new defaults after an
         // upgrade) would otherwise leave plants that get no new image fitted the old way.
         let fit = timeline_settings(tl);
-        let stored: Option<String> = store
-            .conn
-            .query_row("SELECT value FROM meta WHERE key = 'timeline'", [], |r| r.get(0))
-            .optional()?;
+        let stored = store.stored_timeline_settings()?;
         if stored.as_deref() != Some(fit.as_str()) {
             let has_sessions: bool =
                 store

@@ -186,16 +186,20 @@ impl Store {
             [],
             |r| Ok((r.get(0)?, r.get(1)?)),
         )?;
-        let settings = self
-            .conn
-            .query_row("SELECT value FROM meta WHERE key = 'timeline'", [], |r| r.get(0))
-            .optional()?;
         Ok(TimelineSummary {
             events,
             plants_with_lost_leaves,
             leaves_lost,
-            settings,
+            settings: self.stored_timeline_settings()?,
         })
+    }
+
+    /// The `[timeline]` settings the stored fits were made with (`meta`), if any.
+    pub fn stored_timeline_settings(&self) -> anyhow::Result<Option<String>> {
+        Ok(self
+            .conn
+            .query_row("SELECT value FROM meta WHERE key = 'timeline'", [], |r| r.get(0))
+            .optional()?)
     }
 
     /// The most recently recorded image.
