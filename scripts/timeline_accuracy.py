@@ -51,6 +51,25 @@ def observations(counts_path):
     return rows
 
 
+def lost_by_last_day(rows, lost_of):
+    """(leaves lost, plants with a loss) on each plant's last row, `lost_of(row)` giving its leaves lost."""
+    last = {}
+    for r in rows:
+        last[r["plant"]] = r
+    lost = [lost_of(r) for r in last.values()]
+    return sum(lost), sum(x > 0 for x in lost)
+
+
+def ms_per_frame(counts_path):
+    """Mean milliseconds per frame (the pipeline's own `ms` stages) of side and of top views."""
+    ms = {"side": [], "top": []}
+    for line in open(counts_path):
+        r = json.loads(line)
+        kind = "top" if "_Vis_TV_" in os.path.basename(r["file"]) else "side"
+        ms[kind].append(r["ms"]["total"] if "total" in r["ms"] else sum(r["ms"].values()))
+    return {k: (sum(v) / len(v), len(v)) for k, v in ms.items() if v}
+
+
 def truth_observations(truth):
     """The true living-leaf count in each of the five side views: the model taken out."""
     return [(t["plant"], f"{t['date']}T{t['time']}", f"SV_{a}", int(t["living_leaves"]))
@@ -219,6 +238,7 @@ def main():
             timeline, events = run_timeline(a.phyllo, o, rule, os.path.join(tmp, str(i)))
             if i == 0:
                 by_age = age_bands(truth, timeline)
+                first_lost = lost_by_last_day(timeline, lambda r: float(r.get("leaves_lost") or 0))
             if source == "model":
                 per_plant.append(plant_squared_errors(truth, timeline))
                 per_plant_emerged.append(plant_squared_errors(truth, timeline, "leaves_emerged", "leaves_emerged"))
@@ -245,6 +265,11 @@ def main():
         print(f"  {band}: {count_summary(errs)} ({len(errs)} plant-days)")
     # One view alone, as a person counts (SV_108), against the same truth.
     truth_by = {(t["plant"], t["date"]): int(t["living_leaves"]) for t in truth}
+    true_lost = lost_by_last_day(truth, lambda t: int(t["leaves_emerged"]) - int(t["living_leaves"]))
+    print(f"leaves lost by the last day, {a.rules[0]}: {first_lost[0]:g} on {first_lost[1]} plants; "
+          f"truth: {true_lost[0]} on {true_lost[1]} plants")
+    times = ", ".join(f"{k} {m:.0f} ms ({n} frames)" for k, (m, n) in ms_per_frame(a.counts).items())
+    print(f"model time per frame when counted: {times}")
     for view in ("SV_108", "TV_90"):
         errs = [c - truth_by[(p, ts[:10])] for p, ts, v, c in obs if v == view]
         if errs:

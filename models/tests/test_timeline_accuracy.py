@@ -85,3 +85,14 @@ def test_timeline_section_takes_settings_after_the_rule():
     assert ta.timeline_section("second-max-side,death_penalty=0") == 'fusion = "second-max-side"\ndeath_penalty = 0\n'
     with pytest.raises(SystemExit):
         ta.timeline_section("second-max-side,death_penalty")
+
+
+def test_lost_by_last_day_and_time_per_view(tmp_path):
+    rows = [{"plant": "P", "x": 1}, {"plant": "P", "x": 2}, {"plant": "Q", "x": 0}]
+    assert ta.lost_by_last_day(rows, lambda r: r["x"]) == (2, 1)
+    counts = tmp_path / "counts.jsonl"
+    counts.write_text("\n".join(json.dumps({"file": f"/x/{n}", "ms": ms}) for n, ms in [
+        ("P_2018-04-10_08-02-37_Vis_SV_0.png", {"decode": 2.0, "inference": 8.0}),
+        ("P_2018-04-10_08-02-37_Vis_SV_36.png", {"total": 20.0}),
+        ("P_2018-04-10_08-02-37_Vis_TV_90.png", {"total": 5.0})]))
+    assert ta.ms_per_frame(counts) == {"side": (15.0, 2), "top": (5.0, 1)}
