@@ -38,6 +38,9 @@ pub struct Config {
     /// How long `phyllo tail`'s feed keeps its entries.
     #[serde(default)]
     pub feed: FeedConfig,
+    /// Where `phyllo backup` (and its nightly timer) keeps database snapshots.
+    #[serde(default)]
+    pub backup: BackupConfig,
 }
 
 /// `[watch]`: intake from the drop directory.
@@ -234,6 +237,24 @@ impl FeedConfig {
     }
 }
 
+/// `[backup]`: nightly snapshots of the database. The CSV exports hold the
+/// timelines but not the image ledger (paths, hashes, failures) that lets a
+/// restored service pick up where it stopped, so the database itself is kept.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BackupConfig {
+    /// Directory of the snapshots. Unset means `backups/` beside the database.
+    pub dir: Option<PathBuf>,
+    /// Snapshots kept; older ones are deleted after each new one (0 keeps all).
+    pub keep: usize,
+}
+
+impl Default for BackupConfig {
+    fn default() -> Self {
+        Self { dir: None, keep: 14 }
+    }
+}
+
 impl Config {
     /// Reads and validates a configuration file. Relative paths in it are
     /// taken relative to the file's directory (a service's working directory
@@ -254,6 +275,7 @@ impl Config {
             &mut cfg.inference.model,
             &mut cfg.inference.ort_lib,
             &mut cfg.export.dir,
+            &mut cfg.backup.dir,
         ]
         .into_iter()
         .flatten()
@@ -294,6 +316,14 @@ impl Config {
         Ok(())
     }
 
+    /// Directory of the database snapshots `phyllo backup` writes.
+    pub fn backup_dir(&self) -> PathBuf {
+        match &self.backup.dir {
+            Some(d) => d.clone(),
+            None => self.database.parent().unwrap_or(Path::new(".")).join("backups"),
+        }
+    }
+
     /// Directory `phyllo export` writes to without `--out`.
     pub fn export_dir(&self) -> PathBuf {
         match &self.export.dir {
@@ -316,6 +346,8 @@ mod tests {
         assert_eq!(cfg.inference.workers, 2);
         assert_eq!(cfg.timeline.fusion, "second-max-side");
         assert_eq!(cfg.export_dir(), PathBuf::from("/var/lib/phyllo/exports"));
+        assert_eq!(cfg.backup_dir(), PathBuf::from("/var/lib/phyllo/backups"));
+        assert_eq!(cfg.backup.keep, 14);
     }
 
     #[test]
@@ -401,6 +433,8 @@ mod tests {
             "plots",
             "[feed]",
             "keep_days",
+            "[backup]",
+            "keep",
         ];
         for k in keys {
             assert!(text.contains(k), "example config does not mention {k}");

@@ -23,7 +23,7 @@ use crate::names::NamePatterns;
 use crate::source::intake::{Intake, ScanRequest};
 use crate::source::watch::Watch;
 use crate::source::{scan, Candidate, Filter};
-use crate::store::{now_utc, Store};
+use crate::store::{now_utc, DatabaseLock, Store};
 use crate::systemd;
 use crate::worker::{spawn_workers, Stats, WorkerCtx};
 
@@ -40,6 +40,8 @@ pub async fn run(
     mut shutdown: watch::Receiver<bool>,
 ) -> anyhow::Result<()> {
     let names = NamePatterns::from_config(&config.names)?;
+    // Held until the service returns: one service per database.
+    let _lock = DatabaseLock::acquire(&config.database, "phyllo serve")?;
     let mut status_store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
     let model_id = counter.model_id();
     let settings = counter.settings();

@@ -1,5 +1,6 @@
 //! The `phyllo` command line: one module per subcommand.
 
+pub mod backup;
 pub mod bench;
 pub mod count;
 pub mod counter_args;
@@ -7,6 +8,7 @@ pub mod eval;
 pub mod export;
 pub mod import;
 pub mod recount;
+pub mod restore;
 pub mod serve;
 pub mod status;
 pub mod tail;
@@ -46,6 +48,10 @@ pub enum Command {
     Timeline(timeline::Args),
     /// Show the service's queue, progress, failures and model.
     Status(status::Args),
+    /// Snapshot the database (checked, renamed into place), keeping the newest N.
+    Backup(backup::Args),
+    /// Put a snapshot in place of the database (the service stopped; old files kept aside).
+    Restore(restore::Args),
     /// Count leaves in image files (exit 1 if any input failed).
     Count(count::Args),
     /// Time each inference stage on full camera frames, beside a Python pipeline.
@@ -80,6 +86,8 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Export(a) => ok(export::run(a)),
         Command::Timeline(a) => ok(timeline::run(a)),
         Command::Status(a) => ok(status::run(a)),
+        Command::Backup(a) => ok(backup::run(a)),
+        Command::Restore(a) => ok(restore::run(a)),
         Command::Count(a) => count::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Eval(a) => eval::run(a),

@@ -15,6 +15,8 @@ pub struct Args {
 
 /// A heartbeat older than this means the service is not running.
 const STALE_SECS: i64 = 15;
+/// The newest snapshot older than this means the nightly backup is not running.
+const STALE_BACKUP_HOURS: i64 = 48;
 
 /// Runs `phyllo status`.
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -31,6 +33,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(s) => Some(store.counts_with_other_settings(s)?),
         None => None,
     };
+    let backup_dir = config.backup_dir();
+    let snapshots = crate::sinks::backup::list(&backup_dir);
+    let newest = snapshots.as_ref().ok().and_then(|s| s.last().cloned());
+    let backup_age_hours = newest
+        .as_ref()
+        .map(|s| (chrono::Local::now().naive_local() - s.taken_at).num_hours());
     let get = |k: &str| svc.get(k).cloned().unwrap_or_else(|| "-".into());
     let heartbeat_age = svc
         .get("heartbeat")
@@ -52,6 +60,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "last_image": last,
             "recent_failures": failures,
             "counts_with_other_settings": other_settings,
+            "backup": {
+                "dir": backup_dir,
+                "snapshots": snapshots.as_ref().map(Vec::len).ok(),
+                "newest": newest,
+                "age_hours": backup_age_hours,
+                "error": snapshots.as_ref().err().map(|e| format!("{e:#}")),
+            },
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
@@ -86,6 +101,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "settings:  {n} counts made with other settings than the service's (an upgrade since?): `phyllo recount` counts them again"
         ),
         None => {}
+    }
+    match (&snapshots, &newest) {
+        (Err(e), _) => println!("backup:    {e:#}"),
+        (Ok(_), None) => println!(
+            "backup:    no snapshot in {} (`phyllo backup`, or enable phyllo-backup.timer)",
+            backup_dir.display()
+        ),
+        (Ok(all), Some(s)) => {
+            let age = backup_age_hours.unwrap_or(0);
+            let warn = if age > STALE_BACKUP_HOURS {
+                " — older than 2 days: is phyllo-backup.timer enabled?"
+            } else {
+                ""
+            };
+            println!(
+                "backup:    newest {} ({age} h ago, {:.1} MB), {} kept in {}{warn}",
+                s.taken_at.format("%Y-%m-%d %H:%M"),
+                s.bytes as f64 / 1e6,
+                all.len(),
+                backup_dir.display()
+            );
+        }
     }
     match last {
         Some(l) => println!("last:      {} ({}, {})", l.path, l.state, l.at),

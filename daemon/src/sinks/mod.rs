@@ -1,8 +1,10 @@
 //! Sinks: what leaves the database for people and other programs.
 //!
 //! [`export`] writes CSV atomically, [`plot`] draws a plant's timeline,
-//! [`tail`] follows the feed from another process.
+//! [`tail`] follows the feed from another process, [`backup`] keeps checked
+//! snapshots of the database itself.
 
+pub mod backup;
 pub mod export;
 pub mod plot;
 pub mod tail;

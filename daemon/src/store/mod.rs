@@ -15,10 +15,12 @@
 //! offset, ISO 8601 with milliseconds); bookkeeping times (`first_seen`,
 //! `updated_at`, feed `at`) are UTC with a `Z`.
 
+mod lock;
 pub mod migrations;
 mod queries;
 mod recount;
 
+pub use lock::{lock_path, DatabaseLock};
 pub use recount::CountedImage;
 
 use std::collections::{BTreeMap, BTreeSet};
