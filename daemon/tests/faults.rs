@@ -37,26 +37,6 @@ fn stream(n: usize) -> Vec<(String, Vec<u8>)> {
         .collect()
 }
 
-/// Timelines as comparable rows: sessions, plants and events per plant name.
-fn timelines(db: &std::path::Path) -> Vec<String> {
-    let mut out = rows(
-        db,
-        "SELECT 'session', p.name, s.start, s.views, s.n_counts, s.fused, s.leaves_emerged, s.living
-         FROM sessions s JOIN plants p ON p.id = s.plant_id ORDER BY p.name, s.start",
-    );
-    out.extend(rows(
-        db,
-        "SELECT 'plant', name, sessions, last_taken_at, leaves_emerged, living, phyllochron_days
-         FROM plants ORDER BY name",
-    ));
-    out.extend(rows(
-        db,
-        "SELECT 'event', p.name, e.leaf, e.emerged_at, e.seen_at FROM events e
-         JOIN plants p ON p.id = e.plant_id ORDER BY p.name, e.leaf",
-    ));
-    out
-}
-
 /// Checks that every image of `names` has exactly one counted row and one
 /// observation, nothing else is in the database, and the file is sound.
 fn assert_exactly_once(site: &Site, n: usize) {

@@ -239,6 +239,26 @@ pub fn rows(db: &Path, sql: &str) -> Vec<String> {
     .collect()
 }
 
+/// Timelines as comparable rows: sessions, plants and events per plant name.
+pub fn timelines(db: &Path) -> Vec<String> {
+    let mut out = rows(
+        db,
+        "SELECT 'session', p.name, s.start, s.views, s.n_counts, s.fused, s.leaves_emerged, s.living
+         FROM sessions s JOIN plants p ON p.id = s.plant_id ORDER BY p.name, s.start",
+    );
+    out.extend(rows(
+        db,
+        "SELECT 'plant', name, sessions, last_taken_at, leaves_emerged, living, phyllochron_days
+         FROM plants ORDER BY name",
+    ));
+    out.extend(rows(
+        db,
+        "SELECT 'event', p.name, e.leaf, e.emerged_at, e.seen_at FROM events e
+         JOIN plants p ON p.id = e.plant_id ORDER BY p.name, e.leaf",
+    ));
+    out
+}
+
 /// A running `phyllo serve`.
 pub struct Daemon {
     child: Option<Child>,
