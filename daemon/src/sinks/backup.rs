@@ -200,7 +200,7 @@ pub fn list(dir: &Path) -> anyhow::Result<Vec<Snapshot>> {
             ));
         }
     }
-    found.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
+    found.sort_by_key(|a| (a.0, a.1));
     Ok(found.into_iter().map(|(_, _, s)| s).collect())
 }
 
