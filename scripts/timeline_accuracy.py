@@ -93,7 +93,8 @@ def run_timeline(phyllo, obs, rule, work):
     os.makedirs(work)
     cfg = os.path.join(work, "phyllo.toml")
     with open(cfg, "w") as f:
-        f.write(f'drop_dir = "{work}/drop"\ndatabase = "{work}/db.sqlite"\n[timeline]\n{timeline_section(rule)}')
+        f.write(f'drop_dir = "{work}/drop"\ndatabase = "{work}/db.sqlite"\n[timeline]\n{timeline_section(rule)}'
+                f"[groups]\npattern = '{GENOTYPE_PATTERN}'\n")
     obs_csv = os.path.join(work, "obs.csv")
     with open(obs_csv, "w", newline="") as f:
         w = csv.writer(f)
@@ -106,6 +107,47 @@ def run_timeline(phyllo, obs, rule, work):
         subprocess.run([phyllo, "export", "-c", cfg, "--what", what, "--out", path], check=True, capture_output=True)
         out[what] = read_csv(path)
     return out["timeline"], out["events"]
+
+
+# Synthetic plant ids are SYN-<preset>-<n>: the preset plays the genotype.
+GENOTYPE_PATTERN = r"^SYN-(?P<genotype>[a-z0-9]+)-\d+$"
+
+
+def genotype_of(plant):
+    m = re.match(GENOTYPE_PATTERN, plant)
+    return m.group("genotype") if m else None
+
+
+def true_genotypes(truth):
+    """Per genotype, from the generator's truth: (plants, mean leaves emerged on each plant's last day,
+    mean true phyllochron over the plants with one, how many have one)."""
+    out = {}
+    for plant in sorted({t["plant"] for t in truth}):
+        rows = [t for t in truth if t["plant"] == plant]
+        first, dates = rows[0]["date"], [d for d in rows[-1]["emergence_dates"].split(";") if d]
+        rate = phyllochron([(k + 1, d) for k, d in enumerate(dates) if d > first])
+        g = out.setdefault(genotype_of(plant), {"plants": 0, "emerged": [], "phyllochron": []})
+        g["plants"] += 1
+        g["emerged"].append(int(rows[-1]["leaves_emerged"]))
+        if rate is not None:
+            g["phyllochron"].append(rate)
+    mean = lambda xs: sum(xs) / len(xs) if xs else float("nan")
+    return {k: (v["plants"], mean(v["emerged"]), mean(v["phyllochron"]), len(v["phyllochron"])) for k, v in out.items()}
+
+
+def genotype_table(phyllo, cfg, truth):
+    """`phyllo groups` on a store against the generator's truth, one line per genotype."""
+    got = json.loads(subprocess.run([phyllo, "groups", "-c", cfg, "--json"], check=True,
+                                    capture_output=True, text=True).stdout)
+    want = true_genotypes(truth)
+    lines = []
+    for g in got["summaries"]:
+        name = g["group"][0]
+        plants, emerged, rate, n = want.get(name, (0, float("nan"), float("nan"), 0))
+        ph = g["phyllochron_days"] or {"mean": float("nan"), "n": 0}
+        lines.append(f"| {name} | {g['plants']} | {g['leaves_emerged']['mean']:.2f} / {emerged:.2f} | "
+                     f"{ph['mean']:.2f} ({ph['n']}) / {rate:.2f} ({n}) |")
+    return lines
 
 
 def days_from_mid(day, when):
@@ -238,6 +280,7 @@ def main():
             timeline, events = run_timeline(a.phyllo, o, rule, os.path.join(tmp, str(i)))
             if i == 0:
                 by_age = age_bands(truth, timeline)
+                genotypes = genotype_table(a.phyllo, os.path.join(tmp, "0", "phyllo.toml"), truth)
                 first_lost = lost_by_last_day(timeline, lambda r: float(r.get("leaves_lost") or 0))
             if source == "model":
                 per_plant.append(plant_squared_errors(truth, timeline))
@@ -260,6 +303,11 @@ def main():
             wa = sum(ea[p] < eb[p] for p in ea)
             wb = sum(eb[p] < ea[p] for p in ea)
             print(f"  {a.rules[0]} on {wa} plants, {rb} on {wb}; sign test p = {sign_test(wa, wb):.3f}")
+    print(f"per genotype (`phyllo groups`), {a.rules[0]} against the generator's truth; leaves emerged on each plant's")
+    print("last day, phyllochron the mean of the plants' days per leaf (plants with one):")
+    print("| genotype | plants | leaves emerged: phyllo / truth | phyllochron (d/leaf): phyllo / truth |")
+    print("|---|---:|---|---|")
+    print("\n".join(genotypes))
     print(f"fused count by plant age, {a.rules[0]}:")
     for band, errs in by_age:
         print(f"  {band}: {count_summary(errs)} ({len(errs)} plant-days)")

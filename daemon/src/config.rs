@@ -41,6 +41,9 @@ pub struct Config {
     /// Where `phyllo backup` (and its nightly timer) keeps database snapshots.
     #[serde(default)]
     pub backup: BackupConfig,
+    /// How plant ids map to groups (genotype, treatment) for group summaries.
+    #[serde(default)]
+    pub groups: GroupsConfig,
 }
 
 /// `[watch]`: intake from the drop directory.
@@ -237,6 +240,18 @@ impl FeedConfig {
     }
 }
 
+/// `[groups]`: the experiment's design read from plant ids, for
+/// `phyllo groups` and the nightly `groups.csv` / `group_days.csv`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GroupsConfig {
+    /// Regular expression matched against each plant id, with named groups
+    /// for its parts (`(?P<genotype>...)`). Unset: no group summaries.
+    pub pattern: Option<String>,
+    /// The named groups that make a group, in order; empty means all of them.
+    pub by: Vec<String>,
+}
+
 /// `[backup]`: nightly snapshots of the database. The CSV exports hold the
 /// timelines but not the image ledger (paths, hashes, failures) that lets a
 /// restored service pick up where it stopped, so the database itself is kept.
@@ -313,6 +328,7 @@ impl Config {
         }
         crate::timeline::FusionRule::parse(&self.timeline.fusion)?;
         crate::names::NamePatterns::from_config(&self.names)?;
+        crate::groups::GroupRule::from_config(&self.groups)?;
         Ok(())
     }
 
@@ -365,6 +381,7 @@ mod tests {
             "[timeline]\ndeath_penalty = nan",
             "[inference]\nworkers = 0",
             "[feed]\nkeep_days = -1",
+            "[groups]\npattern = \"^(?P<genotype>.+)$\"\nby = [\"treatment\"]",
             "[[names.patterns]]\nname = \"x\"\nregex = \"(?P<plant>.*)\"",
         ] {
             let text = format!("drop_dir = \"/d\"\ndatabase = \"/db\"\n{bad}\n");
@@ -435,6 +452,9 @@ mod tests {
             "keep_days",
             "[backup]",
             "keep",
+            "[groups]",
+            "pattern",
+            "by",
         ];
         for k in keys {
             assert!(text.contains(k), "example config does not mention {k}");

@@ -6,7 +6,8 @@
 //! ```text
 //! source::watch / source::scan ─► source::intake (stability, dedupe) ─► bounded queue
 //!   ─► worker (hash, names, counter off the async runtime) ─► store (one transaction per image)
-//!   ─► timeline (view fusion, isotonic fit, events) ─► sinks: tail, export, plot, status
+//!   ─► timeline (view fusion, isotonic fit, events) ─► sinks: tail, export, plot, status, backup
+//!   (groups: plants → genotype / treatment summaries, for export)
 //! ```
 //!
 //! [`config`] is the TOML file; [`service`] wires the stages for `phyllo serve`.
@@ -19,6 +20,7 @@ pub mod cli;
 pub mod config;
 pub mod counting;
 pub mod evaluation;
+pub mod groups;
 pub mod names;
 pub mod recount;
 pub mod service;

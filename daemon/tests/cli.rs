@@ -214,3 +214,113 @@ fn operator_commands() {
         "{err}"
     );
 }
+
+/// `phyllo groups` and the nightly export's group files, on plants of two
+/// genotypes under two treatments whose leaf numbers are known: genotype A
+/// gains a leaf every 2 days, B every 4, both from 4 leaves; one plant id
+/// outside the pattern is listed, not grouped.
+#[test]
+fn groups_summarise_genotypes_and_treatments() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cfg = d.join("phyllo.toml");
+    let base = format!(
+        "drop_dir = {:?}\ndatabase = {:?}\n[export]\ndir = {:?}\n",
+        d.join("drop"),
+        d.join("state/phyllo.sqlite"),
+        d.join("exports")
+    );
+    std::fs::write(&cfg, &base).unwrap();
+    let cfg_s = cfg.to_str().unwrap();
+    let mut obs = String::from("plant,timestamp,view,leaf_count\n");
+    let plants = [
+        "1-A-WW-1", "2-A-WW-2", "3-A-WL-1", "4-B-WW-1", "5-B-WW-2", "6-B-WL-1", "stray",
+    ];
+    for p in plants {
+        let every = if p.contains("-B-") { 4 } else { 2 };
+        for day in 0..13 {
+            for a in [0, 36, 72, 108, 144] {
+                obs += &format!(
+                    "{p},2026-11-{:02}T10:00:{:02},SV_{a},{}\n",
+                    1 + day,
+                    a / 36,
+                    4 + day / every
+                );
+            }
+        }
+    }
+    std::fs::write(d.join("obs.csv"), obs).unwrap();
+    ok(&["import", "-c", cfg_s, d.join("obs.csv").to_str().unwrap()]);
+
+    // Without a pattern the command says what to set.
+    let out = phyllo(&["groups", "-c", cfg_s]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("[groups] pattern"));
+
+    std::fs::write(
+        &cfg,
+        format!(
+            "{base}[groups]\npattern = '^(?P<pot>\\d+)-(?P<genotype>[A-Z]+)-(?P<treatment>WW|WL)-(?P<rep>\\d+)$'\nby = [\"genotype\", \"treatment\"]\n"
+        ),
+    )
+    .unwrap();
+    let out = phyllo(&["groups", "-c", cfg_s, "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("plants matching no [groups] pattern (1): stray"));
+    let rep: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let groups: Vec<String> = rep["summaries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|g| {
+            g["group"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_str().unwrap())
+                .collect::<Vec<_>>()
+                .join("/")
+        })
+        .collect();
+    assert_eq!(groups, ["A/WL", "A/WW", "B/WL", "B/WW"]);
+    let ww = |i: usize, k: &str| rep["summaries"][i][k]["mean"].as_f64().unwrap();
+    // Day 12: A has 4 + 12/2 = 10 leaves, B 4 + 12/4 = 7; A's phyllochron 2 days, B's 4.
+    assert_eq!(rep["summaries"][1]["plants"], 2);
+    assert!(
+        (ww(1, "leaves_emerged") - 10.0).abs() < 1e-9,
+        "{}",
+        rep["summaries"][1]
+    );
+    assert!(
+        (ww(3, "leaves_emerged") - 7.0).abs() < 1e-9,
+        "{}",
+        rep["summaries"][3]
+    );
+    assert!(
+        (ww(1, "phyllochron_days") - 2.0).abs() < 0.2,
+        "{}",
+        rep["summaries"][1]
+    );
+    assert!(
+        (ww(3, "phyllochron_days") - 4.0).abs() < 0.4,
+        "{}",
+        rep["summaries"][3]
+    );
+    assert_eq!(rep["unmatched"], serde_json::json!(["stray"]));
+
+    // The nightly export writes both tables and the plot beside the others.
+    ok(&["export", "-c", cfg_s]);
+    let exports = d.join("exports");
+    let groups_csv = std::fs::read_to_string(exports.join("groups.csv")).unwrap();
+    let mut lines = groups_csv.lines();
+    assert!(lines
+        .next()
+        .unwrap()
+        .starts_with("genotype,treatment,plants,leaves_emerged_mean,leaves_emerged_sd"));
+    assert!(lines.nth(1).unwrap().starts_with("A,WW,2,10,0,"), "{groups_csv}");
+    let days = std::fs::read_to_string(exports.join("group_days.csv")).unwrap();
+    assert_eq!(days.lines().count(), 1 + 4 * 13);
+    assert!(days.contains("B,WW,2026-11-13,2,7,0,7,0"), "{days}");
+    let png = image::open(exports.join("groups.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (1000, 600));
+}

@@ -96,3 +96,15 @@ def test_lost_by_last_day_and_time_per_view(tmp_path):
         ("P_2018-04-10_08-02-37_Vis_SV_36.png", {"total": 20.0}),
         ("P_2018-04-10_08-02-37_Vis_TV_90.png", {"total": 5.0})]))
     assert ta.ms_per_frame(counts) == {"side": (15.0, 2), "top": (5.0, 1)}
+
+
+def test_true_genotypes_group_plants_by_preset():
+    a = ["2018-04-01", "2018-04-11", "2018-04-13", "2018-04-15"]
+    truth = [truth_row("SYN-btx623-000", "2018-04-10", 1, 1, a), truth_row("SYN-btx623-000", "2018-04-16", 4, 4, a),
+             truth_row("SYN-btx623-001", "2018-04-10", 2, 2, a[:2]), truth_row("SYN-btx623-001", "2018-04-16", 2, 2, a[:2]),
+             truth_row("SYN-maize-002", "2018-04-10", 3, 3, a[:1]), truth_row("SYN-maize-002", "2018-04-16", 3, 3, a[:1])]
+    got = ta.true_genotypes(truth)
+    # Plant 000 dates leaves 2-4 two days apart; the others have too few dateable leaves.
+    assert got["btx623"] == (2, 3.0, pytest.approx(2.0), 1)
+    assert got["maize"][:2] == (1, 3.0)
+    assert ta.genotype_of("SYN-maize-002") == "maize" and ta.genotype_of("402-348-N276-WW-1") is None

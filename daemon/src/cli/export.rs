@@ -59,5 +59,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let (drawn, _) = crate::sinks::plot::plot_all(&store, &dir)?;
         println!("plots: {drawn} plants → {}", dir.display());
     }
+    // And, where the config reads groups from plant ids, their summaries.
+    if nightly {
+        if let Some(rule) = crate::groups::GroupRule::from_config(&config.groups)? {
+            let dir = config.export_dir();
+            let rep = crate::sinks::group_report::report(&store, &rule)?;
+            let n = crate::sinks::group_report::write_groups(&rule, &rep, &dir.join("groups.csv"))?;
+            let d = crate::sinks::group_report::write_days(&rule, &rep, &dir.join("group_days.csv"))?;
+            println!(
+                "groups: {n} rows, group_days: {d} rows ({} plants match no pattern)",
+                rep.unmatched.len()
+            );
+            if config.export.plots && !rep.days.is_empty() {
+                let out = dir.join("groups.png");
+                crate::sinks::group_report::plot(&rep, &out)?;
+                println!("plots: groups → {}", out.display());
+            }
+        }
+    }
     Ok(())
 }

@@ -6,6 +6,7 @@ pub mod count;
 pub mod counter_args;
 pub mod eval;
 pub mod export;
+pub mod groups;
 pub mod import;
 pub mod recount;
 pub mod restore;
@@ -42,10 +43,12 @@ pub enum Command {
     Recount(recount::Args),
     /// Follow new counts and emergence events as they land, until interrupted.
     Tail(tail::Args),
-    /// Write CSV (images, sessions, timeline or events), atomically.
+    /// Write CSV (images, sessions, timeline, events, plants; groups when set), atomically.
     Export(export::Args),
     /// Print (and plot) one plant's timeline.
     Timeline(timeline::Args),
+    /// Summarise the plants per group (genotype, treatment, ... read from plant ids).
+    Groups(groups::Args),
     /// Show the service's queue, progress, failures and model.
     Status(status::Args),
     /// Snapshot the database (checked, renamed into place), keeping the newest N.
@@ -85,6 +88,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Tail(a) => ok(tail::run(a)),
         Command::Export(a) => ok(export::run(a)),
         Command::Timeline(a) => ok(timeline::run(a)),
+        Command::Groups(a) => ok(groups::run(a)),
         Command::Status(a) => ok(status::run(a)),
         Command::Backup(a) => ok(backup::run(a)),
         Command::Restore(a) => ok(restore::run(a)),

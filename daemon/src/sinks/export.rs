@@ -71,6 +71,39 @@ fn query(kind: &str) -> anyhow::Result<&'static str> {
 /// Writes one export kind to `out` atomically. Returns the number of rows.
 pub fn export(conn: &Connection, kind: &str, since: Option<&str>, out: &Path) -> anyhow::Result<usize> {
     let sql = query(kind)?;
+    let mut stmt = conn.prepare(sql)?;
+    let names: Vec<String> = stmt.column_names().iter().map(|s| s.to_string()).collect();
+    write_csv(out, |w| {
+        w.write_record(&names)?;
+        let mut rows = stmt.query([since])?;
+        let mut n = 0;
+        while let Some(row) = rows.next()? {
+            let mut rec = Vec::with_capacity(names.len());
+            for i in 0..names.len() {
+                rec.push(match row.get_ref(i)? {
+                    ValueRef::Null => String::new(),
+                    ValueRef::Integer(v) => v.to_string(),
+                    ValueRef::Real(v) => format_real(v),
+                    ValueRef::Text(t) | ValueRef::Blob(t) => String::from_utf8_lossy(t).into_owned(),
+                });
+            }
+            w.write_record(&rec)?;
+            n += 1;
+        }
+        Ok(n)
+    })
+}
+
+/// The CSV writer [`write_csv`] hands out.
+pub type CsvOut<'a> = csv::Writer<&'a std::fs::File>;
+
+/// Writes a CSV (CRLF, as RFC 4180) to a temporary file beside `out`, syncs
+/// it and renames it into place; `fill` writes the records and returns the
+/// number of rows. On any error `out` is left as it was.
+pub fn write_csv(
+    out: &Path,
+    fill: impl FnOnce(&mut CsvOut<'_>) -> anyhow::Result<usize>,
+) -> anyhow::Result<usize> {
     let dir = match out.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -81,27 +114,10 @@ pub fn export(conn: &Connection, kind: &str, since: Option<&str>, out: &Path) ->
         .suffix(".csv.tmp")
         .tempfile_in(dir)
         .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
-    let mut stmt = conn.prepare(sql)?;
-    let names: Vec<String> = stmt.column_names().iter().map(|s| s.to_string()).collect();
     let mut w = csv::WriterBuilder::new()
         .terminator(csv::Terminator::CRLF)
         .from_writer(tmp.as_file());
-    w.write_record(&names)?;
-    let mut rows = stmt.query([since])?;
-    let mut n = 0;
-    while let Some(row) = rows.next()? {
-        let mut rec = Vec::with_capacity(names.len());
-        for i in 0..names.len() {
-            rec.push(match row.get_ref(i)? {
-                ValueRef::Null => String::new(),
-                ValueRef::Integer(v) => v.to_string(),
-                ValueRef::Real(v) => format_real(v),
-                ValueRef::Text(t) | ValueRef::Blob(t) => String::from_utf8_lossy(t).into_owned(),
-            });
-        }
-        w.write_record(&rec)?;
-        n += 1;
-    }
+    let n = fill(&mut w)?;
     w.flush()?;
     drop(w);
     tmp.as_file().sync_all()?;
@@ -111,7 +127,7 @@ pub fn export(conn: &Connection, kind: &str, since: Option<&str>, out: &Path) ->
 }
 
 /// Reals with at most 4 decimals, no trailing zeros (13.3333, 8, 1.425).
-fn format_real(v: f64) -> String {
+pub fn format_real(v: f64) -> String {
     let s = format!("{v:.4}");
     let s = s.trim_end_matches('0').trim_end_matches('.');
     if s == "-0" {

@@ -2,9 +2,11 @@
 //!
 //! [`export`] writes CSV atomically, [`plot`] draws a plant's timeline,
 //! [`tail`] follows the feed from another process, [`backup`] keeps checked
-//! snapshots of the database itself.
+//! snapshots of the database itself, [`group_report`] writes the per-group
+//! summaries.
 
 pub mod backup;
 pub mod export;
+pub mod group_report;
 pub mod plot;
 pub mod tail;

@@ -1,0 +1,201 @@
+//! Group summaries out: `groups.csv` (one row per group), `group_days.csv`
+//! (one row per group and day) and `groups.png` (each group's mean leaves
+//! emerged per day, ± one SD), each written beside and renamed into place.
+
+use std::path::Path;
+
+use anyhow::{anyhow, Context};
+use chrono::NaiveDate;
+use plotters::prelude::*;
+
+use super::export::{format_real, write_csv};
+use crate::groups::{GroupReport, GroupRule, Spread};
+use crate::store::Store;
+
+/// Reads every plant's timeline from `store` and summarises it by `rule`.
+pub fn report(store: &Store, rule: &GroupRule) -> anyhow::Result<GroupReport> {
+    let mut plants = Vec::new();
+    for p in store.plants()? {
+        if let Some(t) = store.plant_timeline(&p)? {
+            plants.push(t);
+        }
+    }
+    Ok(crate::groups::summarise(rule, &plants))
+}
+
+fn mean(s: Option<Spread>) -> String {
+    s.map_or(String::new(), |s| format_real(s.mean))
+}
+
+fn sd(s: Option<Spread>) -> String {
+    s.map_or(String::new(), |s| format_real(s.sd))
+}
+
+/// Writes `groups.csv`. Returns the number of rows.
+pub fn write_groups(rule: &GroupRule, rep: &GroupReport, out: &Path) -> anyhow::Result<usize> {
+    write_csv(out, |w| {
+        let mut head: Vec<String> = rule.columns().to_vec();
+        head.extend(
+            [
+                "plants",
+                "leaves_emerged_mean",
+                "leaves_emerged_sd",
+                "living_mean",
+                "living_sd",
+                "leaves_lost_mean",
+                "phyllochron_days_mean",
+                "phyllochron_days_sd",
+                "phyllochron_plants",
+                "first_session",
+                "last_session",
+            ]
+            .map(String::from),
+        );
+        w.write_record(&head)?;
+        for g in &rep.summaries {
+            let mut rec = g.group.clone();
+            rec.extend([
+                g.plants.to_string(),
+                mean(g.leaves_emerged),
+                sd(g.leaves_emerged),
+                mean(g.living),
+                sd(g.living),
+                mean(g.leaves_lost),
+                mean(g.phyllochron_days),
+                sd(g.phyllochron_days),
+                g.phyllochron_days.map_or(0, |s| s.n).to_string(),
+                g.first_session.clone(),
+                g.last_session.clone(),
+            ]);
+            w.write_record(&rec)?;
+        }
+        Ok(rep.summaries.len())
+    })
+}
+
+/// Writes `group_days.csv`. Returns the number of rows.
+pub fn write_days(rule: &GroupRule, rep: &GroupReport, out: &Path) -> anyhow::Result<usize> {
+    write_csv(out, |w| {
+        let mut head: Vec<String> = rule.columns().to_vec();
+        head.extend(
+            [
+                "date",
+                "plants",
+                "leaves_emerged_mean",
+                "leaves_emerged_sd",
+                "living_mean",
+                "living_sd",
+            ]
+            .map(String::from),
+        );
+        w.write_record(&head)?;
+        for d in &rep.days {
+            let mut rec = d.group.clone();
+            rec.extend([
+                d.date.clone(),
+                d.leaves_emerged.n.to_string(),
+                format_real(d.leaves_emerged.mean),
+                format_real(d.leaves_emerged.sd),
+                format_real(d.living.mean),
+                format_real(d.living.sd),
+            ]);
+            w.write_record(&rec)?;
+        }
+        Ok(rep.days.len())
+    })
+}
+
+/// Draws each group's mean leaves emerged per day with ± one SD bars, one
+/// colour per group, drawn beside `out` and renamed into place.
+pub fn plot(rep: &GroupReport, out: &Path) -> anyhow::Result<()> {
+    super::plot::register_font();
+    let dates: Vec<NaiveDate> = rep
+        .days
+        .iter()
+        .map(|d| NaiveDate::parse_from_str(&d.date, "%Y-%m-%d").with_context(|| format!("date {:?}", d.date)))
+        .collect::<anyhow::Result<_>>()?;
+    let Some(&d0) = dates.iter().min() else {
+        anyhow::bail!("no group has a session to plot");
+    };
+    let x = |d: &NaiveDate| (*d - d0).num_days() as f64;
+    let xmax = dates.iter().map(x).fold(1.0, f64::max);
+    let ymax = rep
+        .days
+        .iter()
+        .map(|d| d.leaves_emerged.mean + d.leaves_emerged.sd)
+        .fold(1.0, f64::max);
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let name = out
+        .file_name()
+        .map_or("groups.png".into(), |n| n.to_string_lossy().into_owned());
+    let tmp = dir.join(format!(".{name}.partial.png"));
+    {
+        let root = BitMapBackend::new(&tmp, (1000, 600)).into_drawing_area();
+        let err = |e: DrawingAreaErrorKind<_>| anyhow!("drawing {}: {e:?}", out.display());
+        root.fill(&WHITE).map_err(err)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                "leaves emerged per group (mean ± SD of the plants imaged that day)",
+                ("sans-serif", 22),
+            )
+            .margin(15)
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(-0.5..xmax + 0.5, 0.0..(ymax + 1.0).ceil())
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc(format!("days since {d0}"))
+            .y_desc("leaves emerged")
+            .label_style(("sans-serif", 14))
+            .draw()
+            .map_err(err)?;
+        let k = rep.summaries.len() as f64;
+        for (i, g) in rep.summaries.iter().enumerate() {
+            let colour = Palette99::pick(i).to_rgba();
+            // Each group's bars a little apart, so groups on the same day stay readable.
+            let nudge = (i as f64 - (k - 1.0) / 2.0) * (0.3 / k);
+            let pts: Vec<(f64, Spread)> = rep
+                .days
+                .iter()
+                .zip(&dates)
+                .filter(|(d, _)| d.group == g.group)
+                .map(|(d, date)| (x(date) + nudge, d.leaves_emerged))
+                .collect();
+            chart
+                .draw_series(pts.iter().map(|&(px, s)| {
+                    PathElement::new(
+                        vec![(px, s.mean - s.sd), (px, s.mean + s.sd)],
+                        colour.stroke_width(1),
+                    )
+                }))
+                .map_err(err)?;
+            chart
+                .draw_series(LineSeries::new(
+                    pts.iter().map(|&(px, s)| (px, s.mean)),
+                    colour.stroke_width(2),
+                ))
+                .map_err(err)?
+                .label(format!("{} ({} plants)", g.group.join(" / "), g.plants))
+                .legend(move |(lx, ly)| {
+                    PathElement::new(vec![(lx, ly), (lx + 20, ly)], colour.stroke_width(2))
+                });
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .draw()
+            .map_err(err)?;
+        root.present()
+            .with_context(|| format!("writing {}", tmp.display()))?;
+    }
+    std::fs::rename(&tmp, out).with_context(|| format!("renaming {} to {}", tmp.display(), out.display()))?;
+    Ok(())
+}
