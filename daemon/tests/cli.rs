@@ -323,4 +323,26 @@ fn groups_summarise_genotypes_and_treatments() {
     assert!(days.contains("B,WW,2026-11-13,2,7,0,7,0"), "{days}");
     let png = image::open(exports.join("groups.png")).unwrap();
     assert_eq!((png.width(), png.height()), (1000, 600));
+    // One page links it all: each plant to its plot, the groups, the tables.
+    let page = std::fs::read_to_string(exports.join("index.html")).unwrap();
+    for p in plants {
+        assert!(
+            page.contains(&format!("<a href=\"plots/{p}.png\">{p}</a>")),
+            "{p} in {page}"
+        );
+        assert!(exports.join("plots").join(format!("{p}.png")).exists());
+    }
+    for f in [
+        "groups.png",
+        "groups.csv",
+        "group_days.csv",
+        "plants.csv",
+        "events.csv",
+    ] {
+        assert!(page.contains(&format!("\"{f}\"")), "{f} in {page}");
+    }
+    assert!(
+        page.contains("<td>B</td><td>WL</td><td>1</td><td>7</td>"),
+        "{page}"
+    );
 }

@@ -3,7 +3,10 @@
 use std::path::PathBuf;
 
 use super::ConfigArg;
-use crate::sinks::export::{export, KINDS};
+use crate::config::Config;
+use crate::groups::GroupRule;
+use crate::sinks::export::{self, KINDS};
+use crate::sinks::{group_report, index_html};
 use crate::store::Store;
 
 /// Arguments of `phyllo export`.
@@ -38,44 +41,57 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     let store = Store::open_read_only(&config.database)?;
-    let nightly = args.out.is_none();
-    let jobs: Vec<(String, PathBuf)> = match args.out {
-        Some(out) => vec![(args.what.clone(), out)],
-        None => {
-            let dir = config.export_dir();
-            KINDS
-                .iter()
-                .map(|k| (k.to_string(), dir.join(format!("{k}.csv"))))
-                .collect()
+    match args.out {
+        Some(out) => {
+            let n = export::export(store.conn(), &args.what, since.as_deref(), &out)?;
+            println!("{}: {n} rows → {}", args.what, out.display());
+            Ok(())
         }
+        None => nightly(&config, &store, since.as_deref()),
+    }
+}
+
+/// What the nightly timer runs: every table into `[export] dir`, every
+/// plant's plot, the group summaries when configured, and `index.html`
+/// linking them all.
+fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Result<()> {
+    let dir = config.export_dir();
+    let mut index = index_html::Index {
+        generated_at: chrono::Local::now().format("%Y-%m-%d %H:%M").to_string(),
+        plants: export::table(store.conn(), "plants")?,
+        ..Default::default()
     };
-    for (kind, out) in jobs {
-        let n = export(store.conn(), &kind, since.as_deref(), &out)?;
+    for kind in KINDS {
+        let file = format!("{kind}.csv");
+        let out = dir.join(&file);
+        let n = export::export(store.conn(), kind, since, &out)?;
         println!("{kind}: {n} rows → {}", out.display());
+        index.tables.push((file, n));
     }
-    // The nightly run also leaves every plant's plot beside the tables.
-    if nightly && config.export.plots {
-        let dir = config.export_dir().join("plots");
-        let (drawn, _) = crate::sinks::plot::plot_all(&store, &dir)?;
-        println!("plots: {drawn} plants → {}", dir.display());
+    if config.export.plots {
+        let plots = dir.join("plots");
+        index.plots = crate::sinks::plot::plot_all(store, &plots)?.files;
+        println!("plots: {} plants → {}", index.plots.len(), plots.display());
     }
-    // And, where the config reads groups from plant ids, their summaries.
-    if nightly {
-        if let Some(rule) = crate::groups::GroupRule::from_config(&config.groups)? {
-            let dir = config.export_dir();
-            let rep = crate::sinks::group_report::report(&store, &rule)?;
-            let n = crate::sinks::group_report::write_groups(&rule, &rep, &dir.join("groups.csv"))?;
-            let d = crate::sinks::group_report::write_days(&rule, &rep, &dir.join("group_days.csv"))?;
-            println!(
-                "groups: {n} rows, group_days: {d} rows ({} plants match no pattern)",
-                rep.unmatched.len()
-            );
-            if config.export.plots && !rep.days.is_empty() {
-                let out = dir.join("groups.png");
-                crate::sinks::group_report::plot(&rep, &out)?;
-                println!("plots: groups → {}", out.display());
-            }
+    if let Some(rule) = GroupRule::from_config(&config.groups)? {
+        let rep = group_report::report(store, &rule)?;
+        let n = group_report::write_groups(&rule, &rep, &dir.join("groups.csv"))?;
+        let d = group_report::write_days(&rule, &rep, &dir.join("group_days.csv"))?;
+        println!(
+            "groups: {n} rows, group_days: {d} rows ({} plants match no pattern)",
+            rep.unmatched.len()
+        );
+        index.tables.push(("groups.csv".into(), n));
+        index.tables.push(("group_days.csv".into(), d));
+        if config.export.plots && !rep.days.is_empty() {
+            group_report::plot(&rep, &dir.join("groups.png"))?;
+            index.groups_plot = Some("groups.png".into());
         }
+        index.groups = Some(group_report::group_table(&rule, &rep));
+        index.unmatched = rep.unmatched.len();
     }
+    let page = dir.join("index.html");
+    index_html::write(&page, &index)?;
+    println!("index: {}", page.display());
     Ok(())
 }

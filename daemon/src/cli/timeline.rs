@@ -32,10 +32,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let store = Store::open_read_only(&config.database)?;
     if let Some(dir) = &args.plots {
-        let (drawn, empty) = crate::sinks::plot::plot_all(&store, dir)?;
+        let drawn = crate::sinks::plot::plot_all(&store, dir)?;
         eprintln!(
-            "{drawn} plots written to {} ({empty} plants without a counted session)",
-            dir.display()
+            "{} plots written to {} ({} plants without a counted session)",
+            drawn.files.len(),
+            dir.display(),
+            drawn.empty
         );
         return Ok(());
     }

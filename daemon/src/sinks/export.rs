@@ -70,28 +70,49 @@ fn query(kind: &str) -> anyhow::Result<&'static str> {
 
 /// Writes one export kind to `out` atomically. Returns the number of rows.
 pub fn export(conn: &Connection, kind: &str, since: Option<&str>, out: &Path) -> anyhow::Result<usize> {
-    let sql = query(kind)?;
-    let mut stmt = conn.prepare(sql)?;
-    let names: Vec<String> = stmt.column_names().iter().map(|s| s.to_string()).collect();
+    let mut stmt = conn.prepare(query(kind)?)?;
+    let names = column_names(&stmt);
     write_csv(out, |w| {
         w.write_record(&names)?;
         let mut rows = stmt.query([since])?;
         let mut n = 0;
         while let Some(row) = rows.next()? {
-            let mut rec = Vec::with_capacity(names.len());
-            for i in 0..names.len() {
-                rec.push(match row.get_ref(i)? {
-                    ValueRef::Null => String::new(),
-                    ValueRef::Integer(v) => v.to_string(),
-                    ValueRef::Real(v) => format_real(v),
-                    ValueRef::Text(t) | ValueRef::Blob(t) => String::from_utf8_lossy(t).into_owned(),
-                });
-            }
-            w.write_record(&rec)?;
+            w.write_record(cells(row, names.len())?)?;
             n += 1;
         }
         Ok(n)
     })
+}
+
+/// One export kind in memory, as its CSV would hold it: (header, rows).
+/// For small kinds (`plants`); the others stream through [`export`].
+pub fn table(conn: &Connection, kind: &str) -> anyhow::Result<(Vec<String>, Vec<Vec<String>>)> {
+    let mut stmt = conn.prepare(query(kind)?)?;
+    let names = column_names(&stmt);
+    let mut rows = stmt.query([None::<&str>])?;
+    let mut out = Vec::new();
+    while let Some(row) = rows.next()? {
+        out.push(cells(row, names.len())?);
+    }
+    Ok((names, out))
+}
+
+fn column_names(stmt: &rusqlite::Statement<'_>) -> Vec<String> {
+    stmt.column_names().iter().map(|s| s.to_string()).collect()
+}
+
+/// A row's values as CSV cells: NULL empty, reals compact.
+fn cells(row: &rusqlite::Row<'_>, n: usize) -> anyhow::Result<Vec<String>> {
+    (0..n)
+        .map(|i| {
+            Ok(match row.get_ref(i)? {
+                ValueRef::Null => String::new(),
+                ValueRef::Integer(v) => v.to_string(),
+                ValueRef::Real(v) => format_real(v),
+                ValueRef::Text(t) | ValueRef::Blob(t) => String::from_utf8_lossy(t).into_owned(),
+            })
+        })
+        .collect()
 }
 
 /// The CSV writer [`write_csv`] hands out.

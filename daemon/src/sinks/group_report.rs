@@ -31,28 +31,29 @@ fn sd(s: Option<Spread>) -> String {
     s.map_or(String::new(), |s| format_real(s.sd))
 }
 
-/// Writes `groups.csv`. Returns the number of rows.
-pub fn write_groups(rule: &GroupRule, rep: &GroupReport, out: &Path) -> anyhow::Result<usize> {
-    write_csv(out, |w| {
-        let mut head: Vec<String> = rule.columns().to_vec();
-        head.extend(
-            [
-                "plants",
-                "leaves_emerged_mean",
-                "leaves_emerged_sd",
-                "living_mean",
-                "living_sd",
-                "leaves_lost_mean",
-                "phyllochron_days_mean",
-                "phyllochron_days_sd",
-                "phyllochron_plants",
-                "first_session",
-                "last_session",
-            ]
-            .map(String::from),
-        );
-        w.write_record(&head)?;
-        for g in &rep.summaries {
+/// The rows of `groups.csv`: (header, rows).
+pub fn group_table(rule: &GroupRule, rep: &GroupReport) -> (Vec<String>, Vec<Vec<String>>) {
+    let mut head: Vec<String> = rule.columns().to_vec();
+    head.extend(
+        [
+            "plants",
+            "leaves_emerged_mean",
+            "leaves_emerged_sd",
+            "living_mean",
+            "living_sd",
+            "leaves_lost_mean",
+            "phyllochron_days_mean",
+            "phyllochron_days_sd",
+            "phyllochron_plants",
+            "first_session",
+            "last_session",
+        ]
+        .map(String::from),
+    );
+    let rows = rep
+        .summaries
+        .iter()
+        .map(|g| {
             let mut rec = g.group.clone();
             rec.extend([
                 g.plants.to_string(),
@@ -67,9 +68,21 @@ pub fn write_groups(rule: &GroupRule, rep: &GroupReport, out: &Path) -> anyhow::
                 g.first_session.clone(),
                 g.last_session.clone(),
             ]);
-            w.write_record(&rec)?;
+            rec
+        })
+        .collect();
+    (head, rows)
+}
+
+/// Writes `groups.csv`. Returns the number of rows.
+pub fn write_groups(rule: &GroupRule, rep: &GroupReport, out: &Path) -> anyhow::Result<usize> {
+    let (head, rows) = group_table(rule, rep);
+    write_csv(out, |w| {
+        w.write_record(&head)?;
+        for r in &rows {
+            w.write_record(r)?;
         }
-        Ok(rep.summaries.len())
+        Ok(rows.len())
     })
 }
 

@@ -3,10 +3,11 @@
 //! [`export`] writes CSV atomically, [`plot`] draws a plant's timeline,
 //! [`tail`] follows the feed from another process, [`backup`] keeps checked
 //! snapshots of the database itself, [`group_report`] writes the per-group
-//! summaries.
+//! summaries and [`index_html`] the page that links the nightly export.
 
 pub mod backup;
 pub mod export;
 pub mod group_report;
+pub mod index_html;
 pub mod plot;
 pub mod tail;

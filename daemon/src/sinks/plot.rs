@@ -163,11 +163,19 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Draws every plant with a session into `dir`, one PNG per plant. Returns
-/// (plots drawn, plants without a counted session).
-pub fn plot_all(store: &crate::store::Store, dir: &Path) -> anyhow::Result<(usize, usize)> {
+/// What [`plot_all`] drew.
+#[derive(Debug, Default)]
+pub struct PlotFiles {
+    /// Plant id → its PNG's file name in the directory.
+    pub files: std::collections::BTreeMap<String, String>,
+    /// Plants without a counted session (nothing to draw).
+    pub empty: usize,
+}
+
+/// Draws every plant with a session into `dir`, one PNG per plant.
+pub fn plot_all(store: &crate::store::Store, dir: &Path) -> anyhow::Result<PlotFiles> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let (mut drawn, mut empty) = (0, 0);
+    let mut drawn = PlotFiles::default();
     let mut used = std::collections::HashSet::new();
     for plant in store.plants()? {
         match store.plant_timeline(&plant)? {
@@ -186,12 +194,12 @@ pub fn plot_all(store: &crate::store::Store, dir: &Path) -> anyhow::Result<(usiz
                 plot(&t, &tmp)?;
                 std::fs::rename(&tmp, &out)
                     .with_context(|| format!("renaming {} to {}", tmp.display(), out.display()))?;
-                drawn += 1;
+                drawn.files.insert(plant, format!("{stem}.png"));
             }
-            _ => empty += 1,
+            _ => drawn.empty += 1,
         }
     }
-    Ok((drawn, empty))
+    Ok(drawn)
 }
 
 /// A plant id as a file name: anything but letters, digits, `-`, `_` and `.` becomes `_`.

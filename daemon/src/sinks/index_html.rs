@@ -1,0 +1,155 @@
+//! `index.html` beside the nightly export: one page a breeder opens in a
+//! browser, with every plant's summary linked to its timeline plot, the group
+//! summaries and their curves, and the CSV tables. Static HTML, no script, so
+//! it opens from a file share as well as from a web server.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::Path;
+
+use anyhow::Context;
+use html_escape::{encode_double_quoted_attribute as attr, encode_text as text};
+
+/// What the page shows.
+#[derive(Debug, Default)]
+pub struct Index {
+    /// When the export ran (shown at the top).
+    pub generated_at: String,
+    /// The CSV files written, with their row counts.
+    pub tables: Vec<(String, usize)>,
+    /// The `plants` export: header and rows (the first column is the plant id).
+    pub plants: (Vec<String>, Vec<Vec<String>>),
+    /// Plant id → its plot's file name under `plots/`.
+    pub plots: BTreeMap<String, String>,
+    /// The `groups.csv` table, when groups are configured.
+    pub groups: Option<(Vec<String>, Vec<Vec<String>>)>,
+    /// The groups' plot file name, when drawn.
+    pub groups_plot: Option<String>,
+    /// Plants whose id matches no group pattern.
+    pub unmatched: usize,
+}
+
+/// Renders the page.
+pub fn render(idx: &Index) -> String {
+    let mut h = String::new();
+    h.push_str(
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>phyllo: leaf counts</title>\n\
+         <style>body{font-family:sans-serif;margin:2em;color:#222}table{border-collapse:collapse;font-size:90%}\
+         th,td{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#eee}\
+         td:first-child,th:first-child{text-align:left}img{max-width:100%}</style>\n</head>\n<body>\n",
+    );
+    h.push_str("<h1>phyllo: leaf counts and emergence</h1>\n");
+    h.push_str(&format!(
+        "<p>Exported {}. {} plants; click a plant for its timeline plot.</p>\n",
+        text(&idx.generated_at),
+        idx.plants.1.len()
+    ));
+    h.push_str("<p>Tables: ");
+    let links: Vec<String> = idx
+        .tables
+        .iter()
+        .map(|(file, rows)| format!("<a href=\"{}\">{}</a> ({rows} rows)", attr(file), text(file)))
+        .collect();
+    h.push_str(&links.join(", "));
+    h.push_str("</p>\n");
+    if let Some((head, rows)) = &idx.groups {
+        h.push_str("<h2>Groups</h2>\n");
+        if idx.unmatched > 0 {
+            h.push_str(&format!(
+                "<p>{} plants match no group pattern and are not grouped.</p>\n",
+                idx.unmatched
+            ));
+        }
+        table(&mut h, head, rows, |_, cell| text(cell).into_owned());
+        if let Some(png) = &idx.groups_plot {
+            h.push_str(&format!(
+                "<p><img src=\"{}\" alt=\"leaves emerged per group\"></p>\n",
+                attr(png)
+            ));
+        }
+    }
+    h.push_str("<h2>Plants</h2>\n");
+    let (head, rows) = &idx.plants;
+    table(&mut h, head, rows, |col, cell| match (col, idx.plots.get(cell)) {
+        (0, Some(png)) => format!("<a href=\"plots/{}\">{}</a>", attr(png), text(cell)),
+        _ => text(cell).into_owned(),
+    });
+    h.push_str("</body>\n</html>\n");
+    h
+}
+
+fn table(h: &mut String, head: &[String], rows: &[Vec<String>], cell: impl Fn(usize, &str) -> String) {
+    h.push_str("<table>\n<tr>");
+    for c in head {
+        h.push_str(&format!("<th>{}</th>", text(c)));
+    }
+    h.push_str("</tr>\n");
+    for r in rows {
+        h.push_str("<tr>");
+        for (i, c) in r.iter().enumerate() {
+            h.push_str(&format!("<td>{}</td>", cell(i, c)));
+        }
+        h.push_str("</tr>\n");
+    }
+    h.push_str("</table>\n");
+}
+
+/// Writes the page to `out`, beside and renamed into place.
+pub fn write(out: &Path, idx: &Index) -> anyhow::Result<()> {
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".phyllo-index-")
+        .suffix(".html.tmp")
+        .tempfile_in(dir)
+        .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
+    tmp.write_all(render(idx).as_bytes())?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(out)
+        .with_context(|| format!("renaming the page into {}", out.display()))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plants_link_to_their_plots_and_every_text_is_escaped() {
+        let evil = "x'\"><script>alert(1)</script>";
+        let idx = Index {
+            generated_at: "2026-12-05 02:30".into(),
+            tables: vec![("plants.csv".into(), 2)],
+            plants: (
+                vec!["plant".into(), "leaves_emerged".into()],
+                vec![vec!["A-1".into(), "7".into()], vec![evil.into(), "3".into()]],
+            ),
+            plots: BTreeMap::from([("A-1".to_string(), "A-1.png".to_string())]),
+            groups: Some((vec!["genotype".into()], vec![vec!["<b>".into()]])),
+            groups_plot: Some("groups.png".into()),
+            unmatched: 1,
+        };
+        let page = render(&idx);
+        assert!(page.contains("<a href=\"plots/A-1.png\">A-1</a>"), "{page}");
+        assert!(
+            !page.contains("<script>") && page.contains("&lt;script&gt;"),
+            "{page}"
+        );
+        assert!(page.contains("<td>&lt;b&gt;</td>"));
+        assert!(page.contains("<img src=\"groups.png\""));
+        assert!(page.contains("1 plants match no group pattern"));
+        let dir = tempfile::tempdir().unwrap();
+        write(&dir.path().join("index.html"), &idx).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(dir.path().join("index.html")).unwrap(),
+            page
+        );
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "no temporary file left"
+        );
+    }
+}
