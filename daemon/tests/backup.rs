@@ -16,17 +16,7 @@ use common::*;
 
 /// Unique images of six plants over several days, five side views each.
 fn stream(range: std::ops::Range<usize>) -> Vec<(String, Vec<u8>)> {
-    range
-        .map(|i| {
-            let plant = format!("B{:02}", i % 6);
-            let k = i / 6;
-            let (day, view) = (1 + (k / 5) as u32, (k % 5) as u32);
-            (
-                flat_name(&plant, day, view * 7, view * 36),
-                small_png(7_000 + i as u64, 96),
-            )
-        })
-        .collect()
+    image_stream(range, 6, "B", 7_000)
 }
 
 /// Per-image counts and whole timelines: what a restore must bring back.

@@ -21,20 +21,9 @@ use std::time::{Duration, Instant};
 
 use common::*;
 
-/// The images of a stream: (relative name, bytes). Ten plants, several days,
-/// five side views, unique content each.
+/// The images of a stream: ten plants, several days, five side views.
 fn stream(n: usize) -> Vec<(String, Vec<u8>)> {
-    (0..n)
-        .map(|i| {
-            let plant = format!("C{:02}", i % 10);
-            let k = i / 10;
-            let (day, view) = (1 + (k / 5) as u32, (k % 5) as u32);
-            (
-                flat_name(&plant, day, view * 7, view * 36),
-                small_png(1_000 + i as u64, 96),
-            )
-        })
-        .collect()
+    image_stream(0..n, 10, "C", 1_000)
 }
 
 /// Checks that every image of `names` has exactly one counted row and one

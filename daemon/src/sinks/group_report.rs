@@ -198,14 +198,7 @@ pub fn plot(rep: &GroupReport, out: &Path) -> anyhow::Result<()> {
                     PathElement::new(vec![(lx, ly), (lx + 20, ly)], colour.stroke_width(2))
                 });
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 14))
-            .draw()
-            .map_err(err)?;
+        super::plot::draw_legend(&mut chart).map_err(err)?;
         root.present()
             .with_context(|| format!("writing {}", tmp.display()))?;
     }

@@ -150,6 +150,16 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
             )))
             .map_err(err)?;
     }
+    draw_legend(&mut chart).map_err(err)?;
+    root.present()
+        .with_context(|| format!("writing {}", out.display()))?;
+    Ok(())
+}
+
+/// The legend of every phyllo plot: upper left, on a translucent white box.
+pub(crate) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperLeft)
@@ -157,10 +167,6 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
         .border_style(BLACK)
         .label_font(("sans-serif", 14))
         .draw()
-        .map_err(err)?;
-    root.present()
-        .with_context(|| format!("writing {}", out.display()))?;
-    Ok(())
 }
 
 /// What [`plot_all`] drew.

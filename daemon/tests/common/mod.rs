@@ -328,6 +328,28 @@ pub fn signal(pid: u32, sig: &str) {
     assert!(ok, "kill -{sig} {pid}");
 }
 
+/// Images `range` of a stream: (relative name, bytes), spread over `plants`
+/// plants named `<prefix>NN`, several days, five side views, unique content
+/// each (seeded from `seed + i`).
+pub fn image_stream(
+    range: std::ops::Range<usize>,
+    plants: usize,
+    prefix: &str,
+    seed: u64,
+) -> Vec<(String, Vec<u8>)> {
+    range
+        .map(|i| {
+            let plant = format!("{prefix}{:02}", i % plants);
+            let k = i / plants;
+            let (day, view) = (1 + (k / 5) as u32, (k % 5) as u32);
+            (
+                flat_name(&plant, day, view * 7, view * 36),
+                small_png(seed + i as u64, 96),
+            )
+        })
+        .collect()
+}
+
 /// A flat-layout file name.
 pub fn flat_name(plant: &str, day: u32, second: u32, angle: u32) -> String {
     format!("{plant}_2018-04-{day:02}_10-00-{second:02}_Vis_SV_{angle}.png")
