@@ -19,6 +19,7 @@ pub use phyllo_inference as inference;
 pub mod cli;
 pub mod config;
 pub mod counting;
+pub mod disk;
 pub mod evaluation;
 pub mod groups;
 pub mod names;

@@ -151,3 +151,49 @@ fn snapshot_while_counting_then_restore_recovers_every_count() {
         2 * n
     );
 }
+
+/// A snapshot that would leave the disk it lands on too little is refused
+/// before anything is written, with the directory and the space named.
+#[test]
+fn a_snapshot_that_would_fill_its_disk_is_refused() {
+    let site = Site::new("", "");
+    let small = site.tmp.path().join("small");
+    std::fs::create_dir_all(&small).unwrap();
+    let mounted = Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=64M", "tmpfs"])
+        .arg(&small)
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !mounted {
+        eprintln!("SKIPPED: cannot mount a tmpfs (not root, or no mount in this sandbox)");
+        return;
+    }
+    struct Unmount(std::path::PathBuf);
+    impl Drop for Unmount {
+        fn drop(&mut self) {
+            let _ = Command::new("umount").arg("-l").arg(&self.0).status();
+        }
+    }
+    let _unmount = Unmount(small.clone());
+    let mut cfg = std::fs::read_to_string(&site.cfg).unwrap();
+    cfg += &format!("[backup]\ndir = {:?}\n", small.join("backups"));
+    std::fs::write(&site.cfg, cfg).unwrap();
+    let obs = site.tmp.path().join("obs.csv");
+    std::fs::write(
+        &obs,
+        "plant,timestamp,view,leaf_count\nP1,2026-11-01T10:00:00,SV_0,5\n",
+    )
+    .unwrap();
+    assert!(site.phyllo(&["import", obs.to_str().unwrap()]).status.success());
+
+    let out = site.phyllo(&["backup"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains(&small.join("backups").display().to_string()) && err.contains("free"),
+        "{err}"
+    );
+    let left = std::fs::read_dir(small.join("backups")).unwrap().count();
+    assert_eq!(left, 0, "nothing written");
+}

@@ -59,6 +59,7 @@ fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Resul
     let mut index = index_html::Index {
         generated_at: chrono::Local::now().format("%Y-%m-%d %H:%M").to_string(),
         plants: export::table(store.conn(), "plants")?,
+        failed: (store.image_counts()?.failed, store.recent_failures(20)?),
         ..Default::default()
     };
     for kind in KINDS {

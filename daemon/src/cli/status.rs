@@ -39,6 +39,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let backup_age_hours = newest
         .as_ref()
         .map(|s| (chrono::Local::now().naive_local() - s.taken_at).num_hours());
+    let state_dir = config
+        .database
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(std::path::Path::new("."));
+    let free = crate::disk::free_bytes(state_dir).ok();
     let get = |k: &str| svc.get(k).cloned().unwrap_or_else(|| "-".into());
     let heartbeat_age = svc
         .get("heartbeat")
@@ -60,6 +66,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "last_image": last,
             "recent_failures": failures,
             "counts_with_other_settings": other_settings,
+            "free_bytes": free,
             "backup": {
                 "dir": backup_dir,
                 "snapshots": snapshots.as_ref().map(Vec::len).ok(),
@@ -101,6 +108,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "settings:  {n} counts made with other settings than the service's (an upgrade since?): `phyllo recount` counts them again"
         ),
         None => {}
+    }
+    if let Some(free) = free {
+        let warn = if free < crate::disk::LOW_FREE_BYTES {
+            " — low: counts fail when it runs out (exports, snapshots and images share it?)"
+        } else {
+            ""
+        };
+        println!(
+            "disk:      {} free beside the database ({}){warn}",
+            crate::disk::human(free),
+            state_dir.display()
+        );
     }
     match (&snapshots, &newest) {
         (Err(e), _) => println!("backup:    {e:#}"),

@@ -50,6 +50,24 @@ pub struct Contents {
 pub fn snapshot(conn: &Connection, dir: &Path, now: NaiveDateTime) -> anyhow::Result<(Snapshot, Contents)> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating backup directory {}", dir.display()))?;
     remove_stale_work(dir);
+    // VACUUM INTO writes at most the live pages; refuse before writing if
+    // that would leave the service (often on the same disk) too little.
+    let need: u64 = conn.query_row(
+        "SELECT page_count * page_size FROM pragma_page_count(), pragma_page_size()",
+        [],
+        |r| r.get::<_, i64>(0),
+    )? as u64;
+    let free = crate::disk::free_bytes(dir)?;
+    if free < need + crate::disk::SNAPSHOT_RESERVE_BYTES {
+        bail!(
+            "backup directory {} has {} free; a snapshot needs about {} and must leave {} for the service: \
+             free space there, lower [backup] keep, or point [backup] dir at another disk",
+            dir.display(),
+            crate::disk::human(free),
+            crate::disk::human(need),
+            crate::disk::human(crate::disk::SNAPSHOT_RESERVE_BYTES)
+        );
+    }
     let work = tempfile::Builder::new()
         .prefix(WORK_PREFIX)
         .tempdir_in(dir)

@@ -27,6 +27,8 @@ pub struct Index {
     pub groups_plot: Option<String>,
     /// Plants whose id matches no group pattern.
     pub unmatched: usize,
+    /// Images that failed in all, and the newest failures (path, error).
+    pub failed: (i64, Vec<(String, String)>),
 }
 
 /// Renders the page.
@@ -67,6 +69,18 @@ pub fn render(idx: &Index) -> String {
                 attr(png)
             ));
         }
+    }
+    let (failed, newest) = &idx.failed;
+    if *failed > 0 {
+        h.push_str(&format!(
+            "<h2>Problems</h2>\n<p>{failed} images could not be counted (the newest {} below; \
+             <code>images.csv</code> has every one with its error).</p>\n",
+            newest.len()
+        ));
+        let rows: Vec<Vec<String>> = newest.iter().map(|(p, e)| vec![p.clone(), e.clone()]).collect();
+        table(&mut h, &["image".into(), "error".into()], &rows, |_, cell| {
+            text(cell).into_owned()
+        });
     }
     h.push_str("<h2>Plants</h2>\n");
     let (head, rows) = &idx.plants;
@@ -130,6 +144,7 @@ mod tests {
             groups: Some((vec!["genotype".into()], vec![vec!["<b>".into()]])),
             groups_plot: Some("groups.png".into()),
             unmatched: 1,
+            failed: (3, vec![("drop/bad<1>.png".into(), "truncated PNG".into())]),
         };
         let page = render(&idx);
         assert!(page.contains("<a href=\"plots/A-1.png\">A-1</a>"), "{page}");
@@ -140,6 +155,11 @@ mod tests {
         assert!(page.contains("<td>&lt;b&gt;</td>"));
         assert!(page.contains("<img src=\"groups.png\""));
         assert!(page.contains("1 plants match no group pattern"));
+        assert!(page.contains("3 images could not be counted"));
+        assert!(
+            page.contains("<td>drop/bad&lt;1&gt;.png</td><td>truncated PNG</td>"),
+            "{page}"
+        );
         let dir = tempfile::tempdir().unwrap();
         write(&dir.path().join("index.html"), &idx).unwrap();
         assert_eq!(
