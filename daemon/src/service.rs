@@ -31,6 +31,10 @@ use crate::worker::{spawn_workers, Stats, WorkerCtx};
 const STATUS_EVERY: Duration = Duration::from_secs(2);
 /// How often feed entries older than `[feed] keep_days` are deleted.
 const PRUNE_FEED_EVERY: Duration = Duration::from_secs(3600);
+/// How often the free space beside the database is checked.
+const DISK_EVERY: Duration = Duration::from_secs(60);
+/// How often a low-disk warning is repeated in the log while it lasts.
+const DISK_WARN_EVERY: Duration = Duration::from_secs(3600);
 
 /// Runs the service until `shutdown` becomes true. Must be called inside a
 /// multi-threaded tokio runtime.
@@ -93,10 +97,15 @@ pub async fn run(
         config.inference.workers
     );
 
+    let state_dir = match config.database.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
     let status_task = tokio::spawn(report_status(
         status_store,
         stats.clone(),
         config.feed.keep(),
+        state_dir,
         shutdown.clone(),
     ));
     let mut tick = tokio::time::interval(Duration::from_millis(config.watch.poll_ms.max(10)));
@@ -274,6 +283,7 @@ async fn report_status(
     mut store: Store,
     stats: Arc<Stats>,
     keep_feed: Option<Duration>,
+    state_dir: std::path::PathBuf,
     mut shutdown: watch::Receiver<bool>,
 ) -> Store {
     let watchdog = systemd::watchdog_interval();
@@ -281,10 +291,34 @@ async fn report_status(
     let mut tick = tokio::time::interval(every);
     let mut prune = tokio::time::interval(PRUNE_FEED_EVERY);
     prune.set_missed_tick_behavior(MissedTickBehavior::Delay);
+    let mut disk = tokio::time::interval(DISK_EVERY);
+    disk.set_missed_tick_behavior(MissedTickBehavior::Delay);
+    // Free bytes when low, and when the log last said so.
+    let mut low_disk: Option<u64> = None;
+    let mut warned_at: Option<std::time::Instant> = None;
     loop {
         let prune_now = tokio::select! {
             _ = shutdown.wait_for(|s| *s) => return store,
             _ = prune.tick(), if keep_feed.is_some() => keep_feed,
+            _ = disk.tick() => {
+                // A disk that fills slowly (exports, snapshots) is said before counts start failing.
+                low_disk = crate::disk::free_bytes(&state_dir)
+                    .ok()
+                    .filter(|&free| free < crate::disk::LOW_FREE_BYTES);
+                match low_disk {
+                    Some(free) if warned_at.is_none_or(|t| t.elapsed() >= DISK_WARN_EVERY) => {
+                        tracing::warn!(
+                            "only {} free beside the database in {}: counting fails when it runs out",
+                            crate::disk::human(free),
+                            state_dir.display()
+                        );
+                        warned_at = Some(std::time::Instant::now());
+                    }
+                    Some(_) => {}
+                    None => warned_at = None,
+                }
+                continue;
+            }
             _ = tick.tick() => None,
         };
         if let Some(keep) = prune_now {
@@ -320,8 +354,11 @@ async fn report_status(
             Ok(s) => s,
             Err(e) => panic!("status writer panicked: {e}"),
         };
+        let disk_note = low_disk.map_or(String::new(), |free| {
+            format!("; LOW DISK: {} free", crate::disk::human(free))
+        });
         systemd::status(&format!(
-            "queue {queued}, busy {busy}, counted {counted}, failed {failed}; last {last}"
+            "queue {queued}, busy {busy}, counted {counted}, failed {failed}; last {last}{disk_note}"
         ));
         if watchdog.is_some() {
             systemd::watchdog();
