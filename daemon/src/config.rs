@@ -332,11 +332,19 @@ impl Config {
         Ok(())
     }
 
+    /// The directory holding the database (the service's state directory).
+    pub fn state_dir(&self) -> PathBuf {
+        match self.database.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        }
+    }
+
     /// Directory of the database snapshots `phyllo backup` writes.
     pub fn backup_dir(&self) -> PathBuf {
         match &self.backup.dir {
             Some(d) => d.clone(),
-            None => self.database.parent().unwrap_or(Path::new(".")).join("backups"),
+            None => self.state_dir().join("backups"),
         }
     }
 
@@ -344,7 +352,7 @@ impl Config {
     pub fn export_dir(&self) -> PathBuf {
         match &self.export.dir {
             Some(d) => d.clone(),
-            None => self.database.parent().unwrap_or(Path::new(".")).join("exports"),
+            None => self.state_dir().join("exports"),
         }
     }
 }

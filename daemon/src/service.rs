@@ -97,10 +97,7 @@ pub async fn run(
         config.inference.workers
     );
 
-    let state_dir = match config.database.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
+    let state_dir = config.state_dir();
     let status_task = tokio::spawn(report_status(
         status_store,
         stats.clone(),

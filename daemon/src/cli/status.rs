@@ -39,12 +39,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let backup_age_hours = newest
         .as_ref()
         .map(|s| (chrono::Local::now().naive_local() - s.taken_at).num_hours());
-    let state_dir = config
-        .database
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
-    let free = crate::disk::free_bytes(state_dir).ok();
+    let state_dir = config.state_dir();
+    let free = crate::disk::free_bytes(&state_dir).ok();
     let get = |k: &str| svc.get(k).cloned().unwrap_or_else(|| "-".into());
     let heartbeat_age = svc
         .get("heartbeat")
@@ -111,7 +107,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(free) = free {
         let warn = if free < crate::disk::LOW_FREE_BYTES {
-            " — low: counts fail when it runs out (exports, snapshots and images share it?)"
+            " — low: counting fails when it runs out"
         } else {
             ""
         };

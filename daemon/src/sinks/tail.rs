@@ -163,4 +163,18 @@ mod tests {
             "2026-05-04T10:00:00.000  P1  LOST  a leaf died by 2026-05-04 10:00 (1 lost in all)"
         );
     }
+
+    #[test]
+    fn a_refit_reads_as_one_line_with_its_reason() {
+        let row = FeedRow {
+            at: "2026-12-05T08:00:00Z".into(),
+            kind: "refit".into(),
+            message: Some("timeline settings now fusion=max-side: 36 plants refitted".into()),
+            ..FeedRow::default()
+        };
+        assert_eq!(
+            format_row(&row),
+            "2026-12-05T08:00:00Z  REFIT  timeline settings now fusion=max-side: 36 plants refitted"
+        );
+    }
 }

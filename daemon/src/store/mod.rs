@@ -186,7 +186,7 @@ impl Store {
                     .conn
                     .query_row("SELECT EXISTS(SELECT 1 FROM sessions)", [], |r| r.get(0))?;
             if has_sessions {
-                let plants = store.recompute_all()?;
+                let plants = store.refit_all(&format!("timeline settings now {fit}"))?;
                 tracing::info!(plants, settings = %fit, was = ?stored, "timeline settings changed: every timeline refitted");
             }
             store.conn.execute(
@@ -332,7 +332,15 @@ impl Store {
                         count.settings_text()
                     ],
                 )?;
-                let diff = recompute(&tx, &self.params, &self.fusion_name, plant_id, &name.plant, &now)?;
+                let diff = recompute(
+                    &tx,
+                    &self.params,
+                    &self.fusion_name,
+                    plant_id,
+                    &name.plant,
+                    &now,
+                    Announce::Each,
+                )?;
                 let (fused, emerged) = diff.at(name.taken_at);
                 push_feed(
                     &tx,
@@ -422,7 +430,15 @@ impl Store {
             )?;
         }
         for (plant, &pid) in &plants {
-            let diff = recompute(&tx, &self.params, &self.fusion_name, pid, plant, &now)?;
+            let diff = recompute(
+                &tx,
+                &self.params,
+                &self.fusion_name,
+                pid,
+                plant,
+                &now,
+                Announce::Each,
+            )?;
             push_feed(
                 &tx,
                 &FeedRow {
@@ -467,8 +483,21 @@ impl Store {
             .execute("DELETE FROM feed WHERE at < ?1", params![cutoff])?)
     }
 
-    /// Recomputes every plant's timeline (e.g. after the fusion rule changed).
+    /// Recomputes every plant's timeline (after `phyllo recount`), with a feed
+    /// row for each leaf that newly emerged or was lost.
     pub fn recompute_all(&mut self) -> anyhow::Result<usize> {
+        self.refit_every_plant(Announce::Each, None)
+    }
+
+    /// Refits every plant after its fit's settings changed, with one feed row
+    /// saying so instead of one per leaf: the leaves it renumbers or reads as
+    /// lost are not news from the greenhouse, and on a large site they would
+    /// flood `phyllo tail` with today's time.
+    pub fn refit_all(&mut self, why: &str) -> anyhow::Result<usize> {
+        self.refit_every_plant(Announce::Nothing, Some(why))
+    }
+
+    fn refit_every_plant(&mut self, announce: Announce, summary: Option<&str>) -> anyhow::Result<usize> {
         let now = now_utc();
         let tx = self
             .conn
@@ -478,11 +507,34 @@ impl Store {
             .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))?
             .collect::<Result<_, _>>()?;
         for (id, name) in &plants {
-            recompute(&tx, &self.params, &self.fusion_name, *id, name, &now)?;
+            recompute(&tx, &self.params, &self.fusion_name, *id, name, &now, announce)?;
+        }
+        if let Some(why) = summary {
+            push_feed(
+                &tx,
+                &FeedRow {
+                    kind: "refit".into(),
+                    message: Some(format!(
+                        "{why}: {} plants refitted; `phyllo timeline` shows their leaves",
+                        plants.len()
+                    )),
+                    ..FeedRow::default()
+                },
+                &now,
+            )?;
         }
         tx.commit()?;
         Ok(plants.len())
     }
+}
+
+/// Which feed rows a refit writes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Announce {
+    /// One per newly emerged or newly lost leaf.
+    Each,
+    /// None (the caller writes a summary).
+    Nothing,
 }
 
 /// Recomputes the timelines of `plants`, except `skip` (recomputed by the caller).
@@ -495,7 +547,7 @@ fn refresh(
 ) -> anyhow::Result<()> {
     let now = now_utc();
     for (id, name) in plants.iter().filter(|(id, _)| Some(*id) != skip) {
-        recompute(tx, params, rule, *id, name, &now)?;
+        recompute(tx, params, rule, *id, name, &now, Announce::Each)?;
     }
     Ok(())
 }
@@ -680,6 +732,7 @@ fn recompute(
     plant_id: i64,
     plant: &str,
     now: &str,
+    announce: Announce,
 ) -> anyhow::Result<Diff> {
     let obs: Vec<Obs> = tx
         .prepare_cached(
@@ -737,6 +790,8 @@ fn recompute(
         .execute(params![plant_id, e.leaf, iso(e.at), iso(e.seen_at)])?;
         if !old.contains(&e.leaf) {
             new_leaves.push(e.leaf);
+        }
+        if !old.contains(&e.leaf) && announce == Announce::Each {
             push_feed(
                 tx,
                 &FeedRow {
@@ -759,7 +814,7 @@ fn recompute(
     // One feed row per leaf newly read as lost, dated by the session it first shows in.
     let new_lost = tl.sessions.last().map_or(0.0, |s| s.lost);
     let mut k = old_lost + 1.0;
-    while k <= new_lost {
+    while k <= new_lost && announce == Announce::Each {
         let at = tl.sessions.iter().find(|s| s.lost >= k).map(|s| s.start);
         push_feed(
             tx,

@@ -450,6 +450,46 @@ fn opening_with_other_timeline_settings_refits_every_plant() {
 }
 
 #[test]
+fn a_settings_refit_says_so_once_instead_of_per_leaf() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    // SV_0 sees 5 leaves every day, SV_108 5, 6, 7: the default fusion (the
+    // second-largest of two views) dates no new leaf, `max-side` two.
+    for d in 0..3 {
+        for (a, c) in [(0u16, 5u32), (108, 5 + d as u32)] {
+            let t = day(d) + Duration::seconds(a as i64);
+            let f = facts(&format!("P1_{d}_{a}.png"), &format!("{d}-{a}"));
+            s.record(&f, Outcome::Counted(&name("P1", t, View::Side(a)), &count(c)))
+                .unwrap();
+        }
+    }
+    let head = s.feed_head().unwrap();
+    drop(s);
+    let tl = TimelineConfig {
+        fusion: "max-side".into(),
+        ..TimelineConfig::default()
+    };
+    let s = Store::open(&db(&dir), &tl, 3).unwrap();
+    let leaves: Vec<u32> = s
+        .plant_timeline("P1")
+        .unwrap()
+        .unwrap()
+        .events
+        .iter()
+        .map(|e| e.0)
+        .collect();
+    assert_eq!(leaves, [6, 7]);
+    let feed = s.feed_after(head, None, 100).unwrap();
+    assert_eq!(feed.len(), 1, "{feed:?}");
+    assert_eq!(feed[0].kind, "refit");
+    let msg = feed[0].message.as_deref().unwrap();
+    assert!(
+        msg.contains("fusion=max-side") && msg.contains("1 plants refitted"),
+        "{msg}"
+    );
+}
+
+#[test]
 fn counts_keep_their_settings_and_older_databases_gain_the_column() {
     // A site's database from before schema 2: one observation already in it.
     let dir = tempfile::tempdir().unwrap();
