@@ -48,7 +48,8 @@ pub enum View {
     Side(u16),
     /// Top view (the facility labels it 90).
     Top(u16),
-    /// Anything else, e.g. an imported manual count ("human"); fused like a side view.
+    /// Anything else, e.g. an imported person's count (`human`, see
+    /// [`View::is_person`]); fused like a side view unless it is a person's.
     Other(String),
 }
 
@@ -76,6 +77,14 @@ impl View {
     /// True for the top view.
     pub fn is_top(&self) -> bool {
         matches!(self, View::Top(_))
+    }
+
+    /// True for a person's count brought in by `phyllo import`: the view
+    /// `human` or `manual`, alone or with a name after a colon (`human:ana`).
+    pub fn is_person(&self) -> bool {
+        let View::Other(s) = self else { return false };
+        let kind = s.split(':').next().unwrap_or("").trim();
+        kind.eq_ignore_ascii_case("human") || kind.eq_ignore_ascii_case("manual")
     }
 }
 

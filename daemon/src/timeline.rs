@@ -84,7 +84,13 @@ impl FusionRule {
     }
 
     /// Fuses one session's `(view, count)` pairs. `None` if there are none.
+    /// A person's count (a correction, [`View::is_person`]) overrides every
+    /// rule: the session's count is the mean of the people's.
     pub fn fuse(&self, views: &[(View, f64)]) -> Option<f64> {
+        let people = person_counts(views);
+        if !people.is_empty() {
+            return Some(people.iter().sum::<f64>() / people.len() as f64);
+        }
         let all: Vec<f64> = views.iter().map(|(_, c)| *c).collect();
         let pool = &side_counts(views);
         if pool.is_empty() {
@@ -106,6 +112,30 @@ impl FusionRule {
                 }
             }
         })
+    }
+}
+
+/// People's counts in a session (imported corrections).
+fn person_counts(views: &[(View, f64)]) -> Vec<f64> {
+    views
+        .iter()
+        .filter(|(v, _)| v.is_person())
+        .map(|(_, c)| *c)
+        .collect()
+}
+
+/// How many agreeing views a person's count stands for when [`deaths`]
+/// weighs a session: a full day's views, so a correction decides its day.
+const PERSON_AS_VIEWS: usize = 5;
+
+/// What a session tells [`deaths`]: its side views' counts, or, where a
+/// person counted, that count as a full day's agreeing views.
+fn death_evidence(views: &[(View, f64)]) -> Vec<f64> {
+    let people = person_counts(views);
+    if people.is_empty() {
+        side_views(views)
+    } else {
+        vec![people.iter().sum::<f64>() / people.len() as f64; PERSON_AS_VIEWS]
     }
 }
 
@@ -390,7 +420,7 @@ pub fn compute(obs: &[Obs], p: &TimelineParams) -> Timeline {
     // so one view's miscount is outweighed by the others. A top view is none:
     // it sees a few leaves fewer, and a day imaged from the top only would
     // read as leaves lost.
-    let evidence: Vec<Vec<f64>> = sessions.iter().map(|s| side_views(&s.views)).collect();
+    let evidence: Vec<Vec<f64>> = sessions.iter().map(|s| death_evidence(&s.views)).collect();
     let lost = deaths(&evidence, p.death_penalty);
     let with_lost: Vec<f64> = fused.iter().zip(&lost).map(|(f, l)| f + l).collect();
     let emerged = isotonic(&with_lost, &weights);
@@ -591,6 +621,38 @@ mod tests {
             }
         }
         obs
+    }
+
+    #[test]
+    fn a_persons_count_overrides_the_views() {
+        let views = vec![
+            (View::Side(0), 7.0),
+            (View::Side(36), 7.0),
+            (View::Side(72), 8.0),
+            (View::parse("human:ana"), 9.0),
+            (View::parse("Human"), 10.0),
+        ];
+        for rule in ["second-max-side", "max", "median-side", "view:SV_0"] {
+            assert_eq!(FusionRule::parse(rule).unwrap().fuse(&views), Some(9.5), "{rule}");
+        }
+        assert!(View::parse("manual").is_person() && !View::parse("SV_0").is_person());
+        assert!(!View::parse("humane").is_person());
+    }
+
+    #[test]
+    fn a_person_seeing_a_leaf_gone_is_a_death_at_once() {
+        // The views keep seeing 8 (the dead leaf still looks like one to the
+        // model), but a person counted 7 on day 3: that day decides.
+        let mut obs = five_views(&[7., 8., 8., 8., 8., 9., 9.], |_, _| 0.0);
+        obs.push(Obs {
+            taken_at: day(3) + Duration::seconds(300),
+            view: View::parse("human"),
+            count: 7.0,
+        });
+        let t = compute(&obs, &TimelineParams::default());
+        assert_eq!(t.sessions[3].fused, 7.0);
+        let lost: Vec<f64> = t.sessions.iter().map(|s| s.lost).collect();
+        assert_eq!(lost[3], 1.0, "{lost:?}");
     }
 
     #[test]

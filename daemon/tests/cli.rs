@@ -346,3 +346,55 @@ fn groups_summarise_genotypes_and_treatments() {
         "{page}"
     );
 }
+
+/// A person's count imported for a day overrides the model's views that day
+/// (view `human`, optionally `human:NAME`), and re-importing the correction
+/// file replaces it rather than adding a second one.
+#[test]
+fn a_persons_correction_overrides_the_views() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cfg = d.join("phyllo.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "drop_dir = {:?}\ndatabase = {:?}\n",
+            d.join("drop"),
+            d.join("db.sqlite")
+        ),
+    )
+    .unwrap();
+    let cfg = cfg.to_str().unwrap();
+    let mut obs = String::from("plant,timestamp,view,leaf_count\n");
+    for (day, c) in [6, 7, 8, 8, 9].iter().enumerate() {
+        for a in [0, 36, 72, 108, 144] {
+            obs += &format!("P1,2026-11-{:02}T10:00:{:02},SV_{a},{c}\n", day + 1, a / 36);
+        }
+    }
+    std::fs::write(d.join("model.csv"), obs).unwrap();
+    ok(&["import", "-c", cfg, d.join("model.csv").to_str().unwrap()]);
+    let fix = d.join("fix.csv");
+    std::fs::write(
+        &fix,
+        "plant,timestamp,view,leaf_count\nP1,2026-11-03T10:05:00,human:ana,7\n",
+    )
+    .unwrap();
+    ok(&["import", "-c", cfg, fix.to_str().unwrap()]);
+    ok(&["import", "-c", cfg, fix.to_str().unwrap()]);
+    let t: serde_json::Value = serde_json::from_str(&ok(&["timeline", "-c", cfg, "P1", "--json"])).unwrap();
+    let day3 = &t["sessions"][2];
+    assert_eq!(day3["views"]["human:ana"], 7.0, "{day3}");
+    assert_eq!(
+        day3["views"].as_object().unwrap().len(),
+        6,
+        "one correction: {day3}"
+    );
+    assert_eq!(day3["fused"], 7.0, "{day3}");
+    let fused: Vec<f64> = t["sessions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["fused"].as_f64().unwrap())
+        .collect();
+    assert_eq!(fused, [6.0, 7.0, 7.0, 8.0, 9.0]);
+}

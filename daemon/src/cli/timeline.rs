@@ -75,16 +75,19 @@ pub fn render(t: &PlantTimeline) -> String {
     views.dedup();
     let mut s = format!("plant {}\n", t.plant);
     s += &format!("{:<24}", "session");
+    // A column as wide as its view's name (`human:ana`), at least 8.
+    let width = |v: &str| (v.chars().count() + 1).max(8);
     for v in &views {
-        s += &format!("{v:>8}");
+        s += &format!("{v:>w$}", w = width(v));
     }
     s += &format!("{:>8}{:>9}{:>8}{:>6}\n", "fused", "emerged", "living", "lost");
     for row in &t.sessions {
         s += &format!("{:<24}", row.start);
         for v in &views {
+            let w = width(v);
             match row.views.get(*v) {
-                Some(c) => s += &format!("{c:>8}"),
-                None => s += &format!("{:>8}", "-"),
+                Some(c) => s += &format!("{c:>w$}"),
+                None => s += &format!("{:>w$}", "-"),
             }
         }
         s += &format!(

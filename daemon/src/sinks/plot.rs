@@ -25,7 +25,8 @@ pub fn register_font() {
     });
 }
 
-/// Draws the timeline: per-view counts (grey; top views hollow), fused counts
+/// Draws the timeline: per-view counts (grey; top views hollow; people's
+/// counts black crosses), fused counts
 /// (blue), leaves emerged (red steps), living leaves (green), emergence events
 /// (red ticks numbered with the leaf), and leaves read as lost (brown steps)
 /// once a plant has lost one.
@@ -75,11 +76,14 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
     // Side and top views apart: the top view sees a few leaves fewer, and its
     // counts drawn like the side views' would read as a spread of the count.
     let grey = RGBColor(150, 150, 150);
-    let (mut side, mut top) = (Vec::new(), Vec::new());
+    let (mut side, mut top, mut people) = (Vec::new(), Vec::new(), Vec::new());
     for (s, &x) in t.sessions.iter().zip(&xs) {
         for (v, &c) in &s.views {
-            let points = if crate::names::View::parse(v).is_top() {
+            let view = crate::names::View::parse(v);
+            let points = if view.is_top() {
                 &mut top
+            } else if view.is_person() {
+                &mut people
             } else {
                 &mut side
             };
@@ -104,6 +108,14 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
         .map_err(err)?
         .label("fused")
         .legend(|(x, y)| Circle::new((x + 10, y), 5, BLUE.filled()));
+    // Over the fused dot it sets, so the correction shows.
+    if !people.is_empty() {
+        chart
+            .draw_series(people.iter().map(|&p| Cross::new(p, 6, BLACK.stroke_width(2))))
+            .map_err(err)?
+            .label("person's count (overrides the views)")
+            .legend(|(x, y)| Cross::new((x + 10, y), 6, BLACK.stroke_width(2)));
+    }
     let living: Vec<(f64, f64)> = t.sessions.iter().zip(&xs).map(|(s, &x)| (x, s.living)).collect();
     chart
         .draw_series(LineSeries::new(living, GREEN.stroke_width(2)))
