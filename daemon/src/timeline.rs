@@ -231,7 +231,8 @@ pub struct Session {
     pub views: Vec<(View, f64)>,
     /// Fused count.
     pub fused: f64,
-    /// Weight in the isotonic fit (number of counts).
+    /// Weight in the isotonic fit (number of counts; a person's counts as
+    /// a full day of views).
     pub weight: f64,
     /// Leaves lost by this session, as [`deaths`] reads them.
     pub lost: f64,
@@ -412,7 +413,9 @@ pub fn compute(obs: &[Obs], p: &TimelineParams) -> Timeline {
     }
     for s in &mut sessions {
         s.fused = p.fusion.fuse(&s.views).unwrap_or(0.0);
-        s.weight = s.views.len() as f64;
+        // A person's count weighs as much in the fit as in reading deaths.
+        let people = s.views.iter().filter(|(v, _)| v.is_person()).count();
+        s.weight = (s.views.len() + people * (PERSON_AS_VIEWS - 1)) as f64;
     }
     let fused: Vec<f64> = sessions.iter().map(|s| s.fused).collect();
     let weights: Vec<f64> = sessions.iter().map(|s| s.weight).collect();
@@ -651,6 +654,8 @@ mod tests {
         });
         let t = compute(&obs, &TimelineParams::default());
         assert_eq!(t.sessions[3].fused, 7.0);
+        // Five views and the person, who weighs as five.
+        assert_eq!(t.sessions[3].weight, 10.0);
         let lost: Vec<f64> = t.sessions.iter().map(|s| s.lost).collect();
         assert_eq!(lost[3], 1.0, "{lost:?}");
     }
