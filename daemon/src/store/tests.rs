@@ -322,8 +322,10 @@ fn import_is_fused_like_model_counts_and_idempotent() {
     assert_eq!(s.image_counts().unwrap().imported, 3);
     let t = s.plant_timeline("P1").unwrap().unwrap();
     assert_eq!(t.sessions.len(), 2);
-    assert_eq!(t.sessions[0].fused, 8.0); // second-largest of model 8 and manual 9
-    assert_eq!(t.events.len(), 3); // leaves 9, 10, 11
+    assert_eq!(t.sessions[0].fused, 9.0); // a person's 9 overrides the model's 8
+    assert_eq!(t.events.len(), 2); // leaves 10, 11
+    // An imported model-like view is fused like the model's own.
+    assert_eq!(s.plant_timeline("P2").unwrap().unwrap().sessions[0].fused, 5.0);
 }
 
 #[test]
