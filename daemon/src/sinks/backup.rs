@@ -151,6 +151,14 @@ pub struct Restored {
 /// the snapshot are found by the next start's scan and counted again.
 pub fn restore(snapshot: &Path, database: &Path, now: NaiveDateTime) -> anyhow::Result<Restored> {
     let contents = check(snapshot)?;
+    let known = crate::store::migrations::SCHEMA_VERSION as i64;
+    if contents.schema > known {
+        bail!(
+            "snapshot {} has schema {}, newer than this phyllo knows ({known}): restore it with the phyllo that wrote it",
+            snapshot.display(),
+            contents.schema
+        );
+    }
     let _lock = crate::store::DatabaseLock::acquire(database, "phyllo restore")?;
     let dir = match database.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
@@ -436,6 +444,21 @@ mod tests {
             .query_row("SELECT COUNT(*) FROM images", [], |r| r.get(0))
             .unwrap();
         assert_eq!(old, 4);
+    }
+
+    #[test]
+    fn a_snapshot_from_a_newer_phyllo_is_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let conn = db_with(tmp.path(), 1);
+        let newer = crate::store::migrations::SCHEMA_VERSION as i64 + 1;
+        conn.pragma_update(None, "user_version", newer).unwrap();
+        let (snap, _) = snapshot(&conn, &tmp.path().join("backups"), at("2026-12-05 02:30:00")).unwrap();
+        let live = tmp.path().join("other.sqlite");
+        let err = restore(&snap.path, &live, at("2026-12-05 09:00:00"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("newer than this phyllo"), "{err}");
+        assert!(!live.exists());
     }
 
     #[test]

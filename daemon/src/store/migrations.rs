@@ -126,6 +126,9 @@ CREATE TABLE meta (
 "#,
 ];
 
+/// The schema version this build writes (`PRAGMA user_version` after [`migrate`]).
+pub const SCHEMA_VERSION: usize = MIGRATIONS.len();
+
 /// Brings the database to the newest schema version.
 pub fn migrate(conn: &mut Connection) -> anyhow::Result<()> {
     let current: usize = conn.pragma_query_value(None, "user_version", |r| r.get::<_, i64>(0))? as usize;

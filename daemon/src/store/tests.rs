@@ -324,7 +324,7 @@ fn import_is_fused_like_model_counts_and_idempotent() {
     assert_eq!(t.sessions.len(), 2);
     assert_eq!(t.sessions[0].fused, 9.0); // a person's 9 overrides the model's 8
     assert_eq!(t.events.len(), 2); // leaves 10, 11
-    // An imported model-like view is fused like the model's own.
+                                   // An imported model-like view is fused like the model's own.
     assert_eq!(s.plant_timeline("P2").unwrap().unwrap().sessions[0].fused, 5.0);
 }
 
