@@ -384,7 +384,11 @@ pub fn moving_median(y: &[f64], window: usize) -> Vec<f64> {
 
 /// Computes a plant's timeline from all its observations, in any order.
 pub fn compute(obs: &[Obs], p: &TimelineParams) -> Timeline {
-    let mut obs: Vec<&Obs> = obs.iter().collect();
+    // People count by the day: a person's count joins that day's imaging
+    // session (the nearest, if there are two), and starts its own only on a
+    // day without images.
+    let (people, images): (Vec<&Obs>, Vec<&Obs>) = obs.iter().partition(|o| o.view.is_person());
+    let mut obs = images;
     obs.sort_by(|a, b| a.taken_at.cmp(&b.taken_at).then_with(|| a.view.cmp(&b.view)));
     let mut sessions: Vec<Session> = Vec::new();
     let mut last: Option<NaiveDateTime> = None;
@@ -410,6 +414,30 @@ pub fn compute(obs: &[Obs], p: &TimelineParams) -> Timeline {
             .views
             .push((o.view.clone(), o.count));
         last = Some(o.taken_at);
+    }
+    for o in people {
+        let same_day = sessions
+            .iter_mut()
+            .filter(|s| s.start.date() == o.taken_at.date())
+            .min_by_key(|s| (s.start - o.taken_at).num_seconds().abs());
+        match same_day {
+            Some(s) => s.views.push((o.view.clone(), o.count)),
+            None => {
+                let at = sessions.partition_point(|s| s.start <= o.taken_at);
+                sessions.insert(
+                    at,
+                    Session {
+                        start: o.taken_at,
+                        views: vec![(o.view.clone(), o.count)],
+                        fused: 0.0,
+                        weight: 0.0,
+                        lost: 0.0,
+                        emerged: 0.0,
+                        living: 0.0,
+                    },
+                );
+            }
+        }
     }
     for s in &mut sessions {
         s.fused = p.fusion.fuse(&s.views).unwrap_or(0.0);
@@ -640,6 +668,27 @@ mod tests {
         }
         assert!(View::parse("manual").is_person() && !View::parse("SV_0").is_person());
         assert!(!View::parse("humane").is_person());
+    }
+
+    #[test]
+    fn a_persons_count_joins_that_days_imaging_session() {
+        let mut obs = five_views(&[7., 8., 8., 9.], |_, _| 0.0);
+        // Dated only (noon), hours after the images of day 1; and one on a day without images.
+        obs.push(Obs {
+            taken_at: day(1) + Duration::hours(6),
+            view: View::parse("human"),
+            count: 9.0,
+        });
+        obs.push(Obs {
+            taken_at: day(6),
+            view: View::parse("manual"),
+            count: 10.0,
+        });
+        let t = compute(&obs, &TimelineParams::default());
+        let fused: Vec<f64> = t.sessions.iter().map(|s| s.fused).collect();
+        assert_eq!(fused, [7., 9., 8., 9., 10.]);
+        assert_eq!(t.sessions[1].views.len(), 6);
+        assert_eq!(t.sessions[4].start, day(6));
     }
 
     #[test]

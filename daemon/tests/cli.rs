@@ -347,9 +347,10 @@ fn groups_summarise_genotypes_and_treatments() {
     );
 }
 
-/// A person's count imported for a day overrides the model's views that day
-/// (view `human`, optionally `human:NAME`), and re-importing the correction
-/// file replaces it rather than adding a second one.
+/// A person's count imported for a day (a bare date, as people write it)
+/// joins that day's imaging session and overrides the model's views there
+/// (view `human`, optionally `human:NAME`); re-importing the correction file
+/// replaces it rather than adding a second one.
 #[test]
 fn a_persons_correction_overrides_the_views() {
     let dir = tempfile::tempdir().unwrap();
@@ -376,7 +377,7 @@ fn a_persons_correction_overrides_the_views() {
     let fix = d.join("fix.csv");
     std::fs::write(
         &fix,
-        "plant,timestamp,view,leaf_count\nP1,2026-11-03T10:05:00,human:ana,7\n",
+        "plant,timestamp,view,leaf_count\nP1,2026-11-03,human:ana,7\n",
     )
     .unwrap();
     ok(&["import", "-c", cfg, fix.to_str().unwrap()]);
