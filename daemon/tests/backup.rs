@@ -79,6 +79,12 @@ fn snapshot_while_counting_then_restore_recovers_every_count() {
     // Consistent: every image in the snapshot has its observation with it.
     assert_eq!(q(snap, "SELECT COUNT(*) FROM observations"), in_snapshot);
     assert_eq!(site.status()["backup"]["snapshots"], 1);
+    // What a monitor sees: all well while the service runs with a fresh snapshot.
+    let check = site.phyllo(&["status", "--check"]);
+    assert_eq!(
+        (String::from_utf8_lossy(&check.stdout).trim(), check.status.code()),
+        ("phyllo OK", Some(0))
+    );
 
     // One service per database, and no restore under a running one.
     let second = Command::new(BIN)
@@ -104,6 +110,14 @@ fn snapshot_while_counting_then_restore_recovers_every_count() {
         site.q("SELECT COUNT(*) FROM observations") >= 2 * n as i64
     });
     assert!(d.term().success());
+    let check = site.phyllo(&["status", "--check"]);
+    assert_eq!(
+        check.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&check.stdout)
+    );
+    assert!(String::from_utf8_lossy(&check.stdout).starts_with("phyllo CRITICAL: service stopped"));
     let before = state(&site.db);
     assert_eq!(before.iter().filter(|r| r.contains("|counted|")).count(), 2 * n);
 

@@ -252,6 +252,24 @@ fn groups_summarise_genotypes_and_treatments() {
     std::fs::write(d.join("obs.csv"), obs).unwrap();
     ok(&["import", "-c", cfg_s, d.join("obs.csv").to_str().unwrap()]);
 
+    // A monitor asking before the service ever ran, and about a missing database.
+    let check = phyllo(&["status", "-c", cfg_s, "--check"]);
+    assert_eq!(check.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&check.stdout).starts_with("phyllo CRITICAL: service never started"));
+    let other = d.join("other.toml");
+    std::fs::write(
+        &other,
+        format!(
+            "drop_dir = {:?}\ndatabase = {:?}\n",
+            d.join("drop"),
+            d.join("none.sqlite")
+        ),
+    )
+    .unwrap();
+    let check = phyllo(&["status", "-c", other.to_str().unwrap(), "--check"]);
+    assert_eq!(check.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&check.stdout).starts_with("phyllo UNKNOWN: database"));
+
     // Without a pattern the command says what to set.
     let out = phyllo(&["groups", "-c", cfg_s]);
     assert!(!out.status.success());

@@ -89,7 +89,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Export(a) => ok(export::run(a)),
         Command::Timeline(a) => ok(timeline::run(a)),
         Command::Groups(a) => ok(groups::run(a)),
-        Command::Status(a) => ok(status::run(a)),
+        Command::Status(a) => status::run(a),
         Command::Backup(a) => ok(backup::run(a)),
         Command::Restore(a) => ok(restore::run(a)),
         Command::Count(a) => count::run(a),

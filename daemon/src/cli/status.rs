@@ -1,4 +1,6 @@
-//! `phyllo status --config FILE [--json]`.
+//! `phyllo status --config FILE [--json | --check]`.
+
+use std::process::ExitCode;
 
 use super::ConfigArg;
 use crate::store::Store;
@@ -9,8 +11,88 @@ pub struct Args {
     #[command(flatten)]
     config: ConfigArg,
     /// Print JSON.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "check")]
     json: bool,
+    /// One line for a monitoring system, with the Nagios plugin exit codes:
+    /// 0 OK, 1 WARNING, 2 CRITICAL, 3 UNKNOWN (the database cannot be read).
+    #[arg(long)]
+    check: bool,
+}
+
+/// How bad a finding of `--check` is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Level {
+    /// Worth a look.
+    Warning,
+    /// The service is not doing its job, or soon will not.
+    Critical,
+}
+
+/// What `--check` weighs.
+#[derive(Debug, Clone, Default)]
+pub struct Health {
+    /// The service's state as `phyllo status` prints it.
+    pub state: String,
+    /// Bytes free beside the database.
+    pub free: Option<u64>,
+    /// Hours since the newest snapshot (`None`: there is none).
+    pub backup_age_hours: Option<i64>,
+    /// Images that failed in the last 24 hours.
+    pub failed_last_day: i64,
+    /// Internal errors since the service started.
+    pub internal_errors: i64,
+}
+
+/// The findings, worst first; none means OK.
+pub fn findings(h: &Health) -> Vec<(Level, String)> {
+    let mut out = Vec::new();
+    if h.state != "running" {
+        out.push((Level::Critical, format!("service {}", h.state)));
+    }
+    match h.free {
+        Some(f) if f < crate::disk::SNAPSHOT_RESERVE_BYTES => out.push((
+            Level::Critical,
+            format!("{} free beside the database", crate::disk::human(f)),
+        )),
+        Some(f) if f < crate::disk::LOW_FREE_BYTES => out.push((
+            Level::Warning,
+            format!("{} free beside the database", crate::disk::human(f)),
+        )),
+        _ => {}
+    }
+    match h.backup_age_hours {
+        None => out.push((Level::Warning, "no database snapshot".into())),
+        Some(a) if a > STALE_BACKUP_HOURS => out.push((Level::Warning, format!("newest snapshot {a} h old"))),
+        _ => {}
+    }
+    if h.failed_last_day > 0 {
+        out.push((
+            Level::Warning,
+            format!("{} images failed in the last 24 h", h.failed_last_day),
+        ));
+    }
+    if h.internal_errors > 0 {
+        out.push((
+            Level::Warning,
+            format!(
+                "{} internal errors since start (see the journal)",
+                h.internal_errors
+            ),
+        ));
+    }
+    out.sort_by_key(|f| std::cmp::Reverse(f.0));
+    out
+}
+
+/// The `--check` line and its exit code.
+pub fn check_line(found: &[(Level, String)]) -> (String, u8) {
+    let (word, code) = match found.first().map(|f| f.0) {
+        None => return ("phyllo OK".into(), 0),
+        Some(Level::Warning) => ("WARNING", 1),
+        Some(Level::Critical) => ("CRITICAL", 2),
+    };
+    let what: Vec<&str> = found.iter().map(|f| f.1.as_str()).collect();
+    (format!("phyllo {word}: {}", what.join("; ")), code)
 }
 
 /// A heartbeat older than this means the service is not running.
@@ -19,7 +101,65 @@ const STALE_SECS: i64 = 15;
 const STALE_BACKUP_HOURS: i64 = 48;
 
 /// Runs `phyllo status`.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    if args.check {
+        // A monitor must tell "cannot tell" from "broken": UNKNOWN is 3.
+        return Ok(match check(&args) {
+            Ok((line, code)) => {
+                println!("{line}");
+                ExitCode::from(code)
+            }
+            Err(e) => {
+                println!("phyllo UNKNOWN: {e:#}");
+                ExitCode::from(3)
+            }
+        });
+    }
+    show(args).map(|()| ExitCode::SUCCESS)
+}
+
+fn check(args: &Args) -> anyhow::Result<(String, u8)> {
+    let config = args.config.load()?;
+    let store = Store::open_read_only(&config.database)?;
+    let svc = store.service()?;
+    let since = (chrono::Utc::now() - chrono::Duration::hours(24))
+        .format("%Y-%m-%dT%H:%M:%S%.3fZ")
+        .to_string();
+    let health = Health {
+        state: service_state(&svc),
+        free: crate::disk::free_bytes(&config.state_dir()).ok(),
+        backup_age_hours: newest_snapshot_age(&config)?,
+        failed_last_day: store.failures_since(&since)?,
+        internal_errors: svc
+            .get("internal_errors")
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(0),
+    };
+    Ok(check_line(&findings(&health)))
+}
+
+/// Hours since the newest snapshot, `None` when there is none.
+fn newest_snapshot_age(config: &crate::config::Config) -> anyhow::Result<Option<i64>> {
+    let newest = crate::sinks::backup::list(&config.backup_dir())?.pop();
+    Ok(newest.map(|s| (chrono::Local::now().naive_local() - s.taken_at).num_hours()))
+}
+
+/// The service's state from its self-report: a stale heartbeat means it is not running.
+fn service_state(svc: &std::collections::BTreeMap<String, String>) -> String {
+    let heartbeat_age = svc
+        .get("heartbeat")
+        .and_then(|h| chrono::DateTime::parse_from_rfc3339(h).ok())
+        .map(|h| (chrono::Utc::now() - h.with_timezone(&chrono::Utc)).num_seconds());
+    match (svc.get("state").map(String::as_str), heartbeat_age) {
+        (Some("running"), Some(age)) if age > STALE_SECS => {
+            format!("not running (last heartbeat {age} s ago)")
+        }
+        (Some(s), _) => s.to_string(),
+        (None, _) => "never started".into(),
+    }
+}
+
+fn show(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let store = Store::open_read_only(&config.database)?;
     let svc = store.service()?;
@@ -42,17 +182,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let state_dir = config.state_dir();
     let free = crate::disk::free_bytes(&state_dir).ok();
     let get = |k: &str| svc.get(k).cloned().unwrap_or_else(|| "-".into());
-    let heartbeat_age = svc
-        .get("heartbeat")
-        .and_then(|h| chrono::DateTime::parse_from_rfc3339(h).ok())
-        .map(|h| (chrono::Utc::now() - h.with_timezone(&chrono::Utc)).num_seconds());
-    let state = match (svc.get("state").map(String::as_str), heartbeat_age) {
-        (Some("running"), Some(age)) if age > STALE_SECS => {
-            format!("not running (last heartbeat {age} s ago)")
-        }
-        (Some(s), _) => s.to_string(),
-        (None, _) => "never started".into(),
-    };
+    let state = service_state(&svc);
     if args.json {
         let v = serde_json::json!({
             "state": state,
@@ -147,4 +277,52 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("failed:    {path}: {err}");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn healthy() -> Health {
+        Health {
+            state: "running".into(),
+            free: Some(50 << 30),
+            backup_age_hours: Some(5),
+            ..Health::default()
+        }
+    }
+
+    #[test]
+    fn a_healthy_site_is_ok() {
+        assert_eq!(check_line(&findings(&healthy())), ("phyllo OK".into(), 0));
+    }
+
+    #[test]
+    fn the_worst_finding_sets_the_code_and_leads_the_line() {
+        let h = Health {
+            backup_age_hours: Some(72),
+            failed_last_day: 3,
+            ..healthy()
+        };
+        assert_eq!(
+            check_line(&findings(&h)),
+            (
+                "phyllo WARNING: newest snapshot 72 h old; 3 images failed in the last 24 h".into(),
+                1
+            )
+        );
+        let h = Health {
+            state: "not running (last heartbeat 40 s ago)".into(),
+            free: Some(100 << 20),
+            backup_age_hours: None,
+            ..healthy()
+        };
+        let (line, code) = check_line(&findings(&h));
+        assert_eq!(code, 2);
+        assert!(
+            line.starts_with("phyllo CRITICAL: service not running (last heartbeat 40 s ago); 105 MB free"),
+            "{line}"
+        );
+        assert!(line.ends_with("no database snapshot"), "{line}");
+    }
 }

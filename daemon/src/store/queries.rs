@@ -232,6 +232,15 @@ impl Store {
         Ok(rows)
     }
 
+    /// Images recorded as failed at or after `since` (UTC, as `updated_at` is stored).
+    pub fn failures_since(&self, since: &str) -> anyhow::Result<i64> {
+        Ok(self.conn.query_row(
+            "SELECT COUNT(*) FROM images WHERE state = 'failed' AND superseded = 0 AND updated_at >= ?1",
+            [since],
+            |r| r.get(0),
+        )?)
+    }
+
     /// The service's self-report (key → value).
     pub fn service(&self) -> anyhow::Result<BTreeMap<String, String>> {
         let mut stmt = self.conn.prepare("SELECT key, value FROM service")?;
