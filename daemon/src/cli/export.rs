@@ -60,6 +60,7 @@ fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Resul
         generated_at: chrono::Local::now().format("%Y-%m-%d %H:%M").to_string(),
         plants: export::table(store.conn(), "plants")?,
         failed: (store.image_counts()?.failed, store.recent_failures(20)?),
+        health: super::status::check_line(&super::status::findings(&super::status::health(config, store)?)).0,
         ..Default::default()
     };
     for kind in KINDS {

@@ -121,21 +121,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 fn check(args: &Args) -> anyhow::Result<(String, u8)> {
     let config = args.config.load()?;
     let store = Store::open_read_only(&config.database)?;
+    Ok(check_line(&findings(&health(&config, &store)?)))
+}
+
+/// What `--check` weighs, read now from the store, the disk and the snapshots.
+pub fn health(config: &crate::config::Config, store: &Store) -> anyhow::Result<Health> {
     let svc = store.service()?;
     let since = (chrono::Utc::now() - chrono::Duration::hours(24))
         .format("%Y-%m-%dT%H:%M:%S%.3fZ")
         .to_string();
-    let health = Health {
+    Ok(Health {
         state: service_state(&svc),
         free: crate::disk::free_bytes(&config.state_dir()).ok(),
-        backup_age_hours: newest_snapshot_age(&config)?,
+        backup_age_hours: newest_snapshot_age(config)?,
         failed_last_day: store.failures_since(&since)?,
         internal_errors: svc
             .get("internal_errors")
             .and_then(|v| v.parse().ok())
             .unwrap_or(0),
-    };
-    Ok(check_line(&findings(&health)))
+    })
 }
 
 /// Hours since the newest snapshot, `None` when there is none.

@@ -15,6 +15,8 @@ use html_escape::{encode_double_quoted_attribute as attr, encode_text as text};
 pub struct Index {
     /// When the export ran (shown at the top).
     pub generated_at: String,
+    /// The service's health line at that moment (`phyllo status --check`).
+    pub health: String,
     /// The CSV files written, with their row counts.
     pub tables: Vec<(String, usize)>,
     /// The `plants` export: header and rows (the first column is the plant id).
@@ -46,6 +48,9 @@ pub fn render(idx: &Index) -> String {
         text(&idx.generated_at),
         idx.plants.1.len()
     ));
+    if !idx.health.is_empty() {
+        h.push_str(&format!("<p>Service: <code>{}</code></p>\n", text(&idx.health)));
+    }
     h.push_str("<p>Tables: ");
     let links: Vec<String> = idx
         .tables
@@ -135,6 +140,7 @@ mod tests {
         let evil = "x'\"><script>alert(1)</script>";
         let idx = Index {
             generated_at: "2026-12-05 02:30".into(),
+            health: "phyllo WARNING: 3 images failed in the last 24 h".into(),
             tables: vec![("plants.csv".into(), 2)],
             plants: (
                 vec!["plant".into(), "leaves_emerged".into()],
@@ -156,6 +162,7 @@ mod tests {
         assert!(page.contains("<img src=\"groups.png\""));
         assert!(page.contains("1 plants match no group pattern"));
         assert!(page.contains("3 images could not be counted"));
+        assert!(page.contains("<code>phyllo WARNING: 3 images failed in the last 24 h</code>"));
         assert!(
             page.contains("<td>drop/bad&lt;1&gt;.png</td><td>truncated PNG</td>"),
             "{page}"
