@@ -363,6 +363,11 @@ fn groups_summarise_genotypes_and_treatments() {
         page.contains("<td>B</td><td>WL</td><td>1</td><td>7</td>"),
         "{page}"
     );
+    // The page says how the service stood when it was written (here: it never ran).
+    assert!(
+        page.contains("Service: <code>phyllo CRITICAL: service never started"),
+        "{page}"
+    );
 }
 
 /// A person's count imported for a day (a bare date, as people write it)
