@@ -260,13 +260,20 @@ pub struct GroupsConfig {
 pub struct BackupConfig {
     /// Directory of the snapshots. Unset means `backups/` beside the database.
     pub dir: Option<PathBuf>,
-    /// Snapshots kept; older ones are deleted after each new one (0 keeps all).
+    /// The newest snapshots kept; older ones are deleted after each new one
+    /// (0 keeps all).
     pub keep: usize,
+    /// Beyond those, the newest snapshot of each of this many earlier months.
+    pub keep_monthly: usize,
 }
 
 impl Default for BackupConfig {
     fn default() -> Self {
-        Self { dir: None, keep: 14 }
+        Self {
+            dir: None,
+            keep: 14,
+            keep_monthly: 6,
+        }
     }
 }
 
@@ -460,6 +467,7 @@ mod tests {
             "keep_days",
             "[backup]",
             "keep",
+            "keep_monthly",
             "[groups]",
             "pattern",
             "by",

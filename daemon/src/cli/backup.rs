@@ -14,7 +14,8 @@ pub struct Args {
     /// Directory of the snapshots (default: the config's `[backup] dir`).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
-    /// Snapshots to keep, newest first; 0 keeps all (default: `[backup] keep`).
+    /// The newest snapshots to keep; 0 keeps all (default: `[backup] keep`).
+    /// The newest of each of `[backup] keep_monthly` earlier months stay too.
     #[arg(long, value_name = "N")]
     keep: Option<usize>,
     /// Only check a snapshot (SQLite's integrity check, what it holds) and
@@ -58,7 +59,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         c.images,
         c.plants
     );
-    let removed = backup::prune(&dir, args.keep.unwrap_or(config.backup.keep))?;
+    let retention = backup::Retention {
+        newest: args.keep.unwrap_or(config.backup.keep),
+        monthly: config.backup.keep_monthly,
+    };
+    let removed = backup::prune(&dir, retention)?;
     for r in &removed {
         println!("deleted:  {}", r.display());
     }

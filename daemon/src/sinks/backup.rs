@@ -230,15 +230,47 @@ pub fn list(dir: &Path) -> anyhow::Result<Vec<Snapshot>> {
     Ok(found.into_iter().map(|(_, _, s)| s).collect())
 }
 
-/// Deletes all but the newest `keep` snapshots (`keep` 0 deletes none).
-/// Returns the files deleted.
-pub fn prune(dir: &Path, keep: usize) -> anyhow::Result<Vec<PathBuf>> {
-    if keep == 0 {
-        return Ok(Vec::new());
+/// How many snapshots [`prune`] keeps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Retention {
+    /// The newest snapshots kept, whatever their age (0: keep every snapshot).
+    pub newest: usize,
+    /// Beyond those, the newest snapshot of each of this many earlier
+    /// calendar months: a fault found weeks late can still be undone.
+    pub monthly: usize,
+}
+
+/// The snapshots `retention` keeps, from `all` sorted oldest first.
+fn kept(all: &[Snapshot], retention: Retention) -> Vec<bool> {
+    use chrono::Datelike;
+    if retention.newest == 0 {
+        return vec![true; all.len()];
     }
+    let mut keep = vec![false; all.len()];
+    let mut months = std::collections::BTreeSet::new();
+    let mut extra_months = 0;
+    // Newest first: the newest N, then the newest of each month not yet held.
+    for (rank, i) in (0..all.len()).rev().enumerate() {
+        let month = (all[i].taken_at.year(), all[i].taken_at.month());
+        if rank < retention.newest {
+            keep[i] = true;
+            months.insert(month);
+        } else if extra_months < retention.monthly && months.insert(month) {
+            keep[i] = true;
+            extra_months += 1;
+        }
+    }
+    keep
+}
+
+/// Deletes the snapshots `retention` does not keep. Returns the files deleted.
+pub fn prune(dir: &Path, retention: Retention) -> anyhow::Result<Vec<PathBuf>> {
     let all = list(dir)?;
     let mut removed = Vec::new();
-    for old in &all[..all.len().saturating_sub(keep)] {
+    for (old, keep) in all.iter().zip(kept(&all, retention)) {
+        if keep {
+            continue;
+        }
         std::fs::remove_file(&old.path)
             .with_context(|| format!("deleting old snapshot {}", old.path.display()))?;
         removed.push(old.path.clone());
@@ -380,12 +412,67 @@ mod tests {
             snapshot(&conn, &dir, at(&format!("2026-12-0{day} 02:30:00"))).unwrap();
         }
         std::fs::write(dir.join("README"), "operator's note").unwrap();
-        let removed = prune(&dir, 2).unwrap();
+        let removed = prune(
+            &dir,
+            Retention {
+                newest: 2,
+                monthly: 0,
+            },
+        )
+        .unwrap();
         assert_eq!(removed.len(), 3);
         let left: Vec<NaiveDateTime> = list(&dir).unwrap().iter().map(|s| s.taken_at).collect();
         assert_eq!(left, vec![at("2026-12-04 02:30:00"), at("2026-12-05 02:30:00")]);
         assert!(dir.join("README").exists());
-        assert!(prune(&dir, 0).unwrap().is_empty());
+        assert!(prune(
+            &dir,
+            Retention {
+                newest: 0,
+                monthly: 0
+            }
+        )
+        .unwrap()
+        .is_empty());
+    }
+
+    #[test]
+    fn monthly_snapshots_outlive_the_daily_ones() {
+        // Daily snapshots from 1 August to 14 December.
+        let start = at("2026-08-01 02:00:00");
+        let all: Vec<Snapshot> = (0..136)
+            .map(|d| Snapshot {
+                path: PathBuf::from(format!("{d}")),
+                taken_at: start + chrono::Duration::days(d),
+                bytes: 1,
+            })
+            .collect();
+        let keep = kept(
+            &all,
+            Retention {
+                newest: 14,
+                monthly: 3,
+            },
+        );
+        let days: Vec<String> = all
+            .iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(s, _)| s.taken_at.format("%m-%d").to_string())
+            .collect();
+        // The last 14 days (all December), then the last day of November, October, September.
+        let mut want = vec!["09-30", "10-31", "11-30"];
+        let dec: Vec<String> = (1..=14).map(|d| format!("12-{d:02}")).collect();
+        want.extend(dec.iter().map(String::as_str));
+        assert_eq!(days, want);
+        assert!(kept(
+            &all,
+            Retention {
+                newest: 0,
+                monthly: 3
+            }
+        )
+        .iter()
+        .all(|k| *k));
     }
 
     #[test]
