@@ -79,7 +79,11 @@ fn snapshot_while_counting_then_restore_recovers_every_count() {
     // Consistent: every image in the snapshot has its observation with it.
     assert_eq!(q(snap, "SELECT COUNT(*) FROM observations"), in_snapshot);
     assert_eq!(site.status()["backup"]["snapshots"], 1);
-    // What a monitor sees: all well while the service runs with a fresh snapshot.
+    // What a monitor sees: all well while the service runs with a fresh
+    // snapshot and export (the nightly export, taken while images land).
+    let check = site.phyllo(&["status", "--check"]);
+    assert!(String::from_utf8_lossy(&check.stdout).contains("no nightly export yet"));
+    assert!(site.phyllo(&["export"]).status.success());
     let check = site.phyllo(&["status", "--check"]);
     assert_eq!(
         (String::from_utf8_lossy(&check.stdout).trim(), check.status.code()),

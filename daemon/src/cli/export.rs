@@ -60,7 +60,12 @@ fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Resul
         generated_at: chrono::Local::now().format("%Y-%m-%d %H:%M").to_string(),
         plants: export::table(store.conn(), "plants")?,
         failed: (store.image_counts()?.failed, store.recent_failures(20)?),
-        health: super::status::check_line(&super::status::findings(&super::status::health(config, store)?)).0,
+        health: {
+            // This export is the one being written, so it is not stale.
+            let mut h = super::status::health(config, store)?;
+            h.export_age_hours = Some(0);
+            super::status::check_line(&super::status::findings(&h)).0
+        },
         ..Default::default()
     };
     for kind in KINDS {

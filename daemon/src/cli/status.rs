@@ -37,6 +37,8 @@ pub struct Health {
     pub free: Option<u64>,
     /// Hours since the newest snapshot (`None`: there is none).
     pub backup_age_hours: Option<i64>,
+    /// Hours since the nightly export last wrote its page (`None`: never).
+    pub export_age_hours: Option<i64>,
     /// Images that failed in the last 24 hours.
     pub failed_last_day: i64,
     /// Internal errors since the service started.
@@ -63,6 +65,11 @@ pub fn findings(h: &Health) -> Vec<(Level, String)> {
     match h.backup_age_hours {
         None => out.push((Level::Warning, "no database snapshot".into())),
         Some(a) if a > STALE_BACKUP_HOURS => out.push((Level::Warning, format!("newest snapshot {a} h old"))),
+        _ => {}
+    }
+    match h.export_age_hours {
+        None => out.push((Level::Warning, "no nightly export yet".into())),
+        Some(a) if a > STALE_BACKUP_HOURS => out.push((Level::Warning, format!("nightly export {a} h old"))),
         _ => {}
     }
     if h.failed_last_day > 0 {
@@ -134,12 +141,24 @@ pub fn health(config: &crate::config::Config, store: &Store) -> anyhow::Result<H
         state: service_state(&svc),
         free: crate::disk::free_bytes(&config.state_dir()).ok(),
         backup_age_hours: newest_snapshot_age(config)?,
+        export_age_hours: export_age_hours(config),
         failed_last_day: store.failures_since(&since)?,
         internal_errors: svc
             .get("internal_errors")
             .and_then(|v| v.parse().ok())
             .unwrap_or(0),
     })
+}
+
+/// Hours since the nightly export wrote its page, `None` when it never has.
+fn export_age_hours(config: &crate::config::Config) -> Option<i64> {
+    let written = std::fs::metadata(config.export_dir().join("index.html"))
+        .and_then(|m| m.modified())
+        .ok()?;
+    let age = std::time::SystemTime::now()
+        .duration_since(written)
+        .unwrap_or_default();
+    Some((age.as_secs() / 3600) as i64)
 }
 
 /// Hours since the newest snapshot, `None` when there is none.
@@ -197,6 +216,7 @@ fn show(args: Args) -> anyhow::Result<()> {
             "recent_failures": failures,
             "counts_with_other_settings": other_settings,
             "free_bytes": free,
+            "export_age_hours": export_age_hours(&config),
             "backup": {
                 "dir": backup_dir,
                 "snapshots": snapshots.as_ref().map(Vec::len).ok(),
@@ -273,6 +293,21 @@ fn show(args: Args) -> anyhow::Result<()> {
             );
         }
     }
+    match export_age_hours(&config) {
+        Some(a) => println!(
+            "export:    index.html written {a} h ago in {}{}",
+            config.export_dir().display(),
+            if a > STALE_BACKUP_HOURS {
+                " — older than 2 days: is phyllo-export.timer enabled?"
+            } else {
+                ""
+            }
+        ),
+        None => println!(
+            "export:    none yet in {} (`phyllo export`, or enable phyllo-export.timer)",
+            config.export_dir().display()
+        ),
+    }
     match last {
         Some(l) => println!("last:      {} ({}, {})", l.path, l.state, l.at),
         None => println!("last:      -"),
@@ -292,6 +327,7 @@ mod tests {
             state: "running".into(),
             free: Some(50 << 30),
             backup_age_hours: Some(5),
+            export_age_hours: Some(6),
             ..Health::default()
         }
     }
