@@ -22,6 +22,19 @@ fn ok(args: &[&str]) -> String {
     String::from_utf8(out.stdout).unwrap()
 }
 
+/// A config in `d` (drop directory and database under it) with `extra`
+/// appended; returns its path and its text.
+fn site_config(d: &Path, extra: &str) -> (String, String) {
+    let cfg = d.join("phyllo.toml");
+    let text = format!(
+        "drop_dir = {:?}\ndatabase = {:?}\n{extra}",
+        d.join("drop"),
+        d.join("state/phyllo.sqlite")
+    );
+    std::fs::write(&cfg, &text).unwrap();
+    (cfg.to_str().unwrap().to_string(), text)
+}
+
 /// The DESIGN.md ground truth, five side views and a top view per day.
 fn write_obs(path: &Path) {
     let gt = [8, 8, 10, 10, 11, 11, 12, 13, 14, 12, 14];
@@ -44,17 +57,8 @@ fn write_obs(path: &Path) {
 fn operator_commands() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let cfg = d.join("phyllo.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            "drop_dir = {:?}\ndatabase = {:?}\n",
-            d.join("drop"),
-            d.join("state/phyllo.sqlite")
-        ),
-    )
-    .unwrap();
-    let cfg = cfg.to_str().unwrap();
+    let (cfg, _) = site_config(d, "");
+    let cfg = cfg.as_str();
     let obs = d.join("obs.csv");
     write_obs(&obs);
 
@@ -223,15 +227,9 @@ fn operator_commands() {
 fn groups_summarise_genotypes_and_treatments() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let cfg = d.join("phyllo.toml");
-    let base = format!(
-        "drop_dir = {:?}\ndatabase = {:?}\n[export]\ndir = {:?}\n",
-        d.join("drop"),
-        d.join("state/phyllo.sqlite"),
-        d.join("exports")
-    );
-    std::fs::write(&cfg, &base).unwrap();
-    let cfg_s = cfg.to_str().unwrap();
+    let (cfg_s, base) = site_config(d, &format!("[export]\ndir = {:?}\n", d.join("exports")));
+    let cfg_s = cfg_s.as_str();
+    let cfg = Path::new(cfg_s);
     let mut obs = String::from("plant,timestamp,view,leaf_count\n");
     let plants = [
         "1-A-WW-1", "2-A-WW-2", "3-A-WL-1", "4-B-WW-1", "5-B-WW-2", "6-B-WL-1", "stray",
@@ -276,7 +274,7 @@ fn groups_summarise_genotypes_and_treatments() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("[groups] pattern"));
 
     std::fs::write(
-        &cfg,
+        cfg,
         format!(
             "{base}[groups]\npattern = '^(?P<pot>\\d+)-(?P<genotype>[A-Z]+)-(?P<treatment>WW|WL)-(?P<rep>\\d+)$'\nby = [\"genotype\", \"treatment\"]\n"
         ),
@@ -378,17 +376,8 @@ fn groups_summarise_genotypes_and_treatments() {
 fn a_persons_correction_overrides_the_views() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let cfg = d.join("phyllo.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            "drop_dir = {:?}\ndatabase = {:?}\n",
-            d.join("drop"),
-            d.join("db.sqlite")
-        ),
-    )
-    .unwrap();
-    let cfg = cfg.to_str().unwrap();
+    let (cfg, _) = site_config(d, "");
+    let cfg = cfg.as_str();
     let mut obs = String::from("plant,timestamp,view,leaf_count\n");
     for (day, c) in [6, 7, 8, 8, 9].iter().enumerate() {
         for a in [0, 36, 72, 108, 144] {
