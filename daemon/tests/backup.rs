@@ -85,9 +85,16 @@ fn snapshot_while_counting_then_restore_recovers_every_count() {
     assert!(String::from_utf8_lossy(&check.stdout).contains("no nightly export yet"));
     assert!(site.phyllo(&["export"]).status.success());
     let check = site.phyllo(&["status", "--check"]);
-    assert_eq!(
-        (String::from_utf8_lossy(&check.stdout).trim(), check.status.code()),
-        ("phyllo OK", Some(0))
+    let line = String::from_utf8_lossy(&check.stdout).trim().to_string();
+    // A test machine short of space (under 1 GB in its temp directory) may
+    // add that one warning; nothing else may be wrong.
+    let only_low_disk = check.status.code() == Some(1)
+        && line.starts_with("phyllo WARNING: ")
+        && line.ends_with("free beside the database")
+        && !line.contains(';');
+    assert!(
+        (line == "phyllo OK" && check.status.code() == Some(0)) || only_low_disk,
+        "{line}"
     );
 
     // One service per database, and no restore under a running one.
