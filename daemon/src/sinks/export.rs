@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use rusqlite::types::ValueRef;
 use rusqlite::Connection;
 
@@ -116,35 +116,23 @@ fn cells(row: &rusqlite::Row<'_>, n: usize) -> anyhow::Result<Vec<String>> {
 }
 
 /// The CSV writer [`write_csv`] hands out.
-pub type CsvOut<'a> = csv::Writer<&'a std::fs::File>;
+pub type CsvOut = csv::Writer<std::fs::File>;
 
-/// Writes a CSV (CRLF, as RFC 4180) to a temporary file beside `out`, syncs
-/// it and renames it into place; `fill` writes the records and returns the
+/// Writes a CSV (CRLF, as RFC 4180) and renames it into place
+/// ([`super::atomic::replace`]); `fill` writes the records and returns the
 /// number of rows. On any error `out` is left as it was.
 pub fn write_csv(
     out: &Path,
-    fill: impl FnOnce(&mut CsvOut<'_>) -> anyhow::Result<usize>,
+    fill: impl FnOnce(&mut CsvOut) -> anyhow::Result<usize>,
 ) -> anyhow::Result<usize> {
-    let dir = match out.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let tmp = tempfile::Builder::new()
-        .prefix(".phyllo-export-")
-        .suffix(".csv.tmp")
-        .tempfile_in(dir)
-        .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
-    let mut w = csv::WriterBuilder::new()
-        .terminator(csv::Terminator::CRLF)
-        .from_writer(tmp.as_file());
-    let n = fill(&mut w)?;
-    w.flush()?;
-    drop(w);
-    tmp.as_file().sync_all()?;
-    tmp.persist(out)
-        .with_context(|| format!("renaming the export into {}", out.display()))?;
-    Ok(n)
+    super::atomic::replace(out, ".csv", |tmp| {
+        let mut w = csv::WriterBuilder::new()
+            .terminator(csv::Terminator::CRLF)
+            .from_path(tmp)?;
+        let n = fill(&mut w)?;
+        w.flush()?;
+        Ok(n)
+    })
 }
 
 /// Reals with at most 4 decimals, no trailing zeros (13.3333, 8, 1.425).

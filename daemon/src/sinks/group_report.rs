@@ -137,17 +137,8 @@ pub fn plot(rep: &GroupReport, out: &Path) -> anyhow::Result<()> {
         .iter()
         .map(|d| d.leaves_emerged.mean + d.leaves_emerged.sd)
         .fold(1.0, f64::max);
-    let dir = match out.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let name = out
-        .file_name()
-        .map_or("groups.png".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = dir.join(format!(".{name}.partial.png"));
-    {
-        let root = BitMapBackend::new(&tmp, (1000, 600)).into_drawing_area();
+    super::atomic::replace(out, ".png", |tmp| {
+        let root = BitMapBackend::new(tmp, (1000, 600)).into_drawing_area();
         let err = |e: DrawingAreaErrorKind<_>| anyhow!("drawing {}: {e:?}", out.display());
         root.fill(&WHITE).map_err(err)?;
         let mut chart = ChartBuilder::on(&root)
@@ -200,8 +191,7 @@ pub fn plot(rep: &GroupReport, out: &Path) -> anyhow::Result<()> {
         }
         super::plot::draw_legend(&mut chart).map_err(err)?;
         root.present()
-            .with_context(|| format!("writing {}", tmp.display()))?;
-    }
-    std::fs::rename(&tmp, out).with_context(|| format!("renaming {} to {}", tmp.display(), out.display()))?;
-    Ok(())
+            .with_context(|| format!("writing {}", out.display()))?;
+        Ok(())
+    })
 }

@@ -4,10 +4,8 @@
 //! it opens from a file share as well as from a web server.
 
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::Path;
 
-use anyhow::Context;
 use html_escape::{encode_double_quoted_attribute as attr, encode_text as text};
 
 /// What the page shows.
@@ -113,22 +111,9 @@ fn table(h: &mut String, head: &[String], rows: &[Vec<String>], cell: impl Fn(us
     h.push_str("</table>\n");
 }
 
-/// Writes the page to `out`, beside and renamed into place.
+/// Writes the page to `out`, renamed into place whole.
 pub fn write(out: &Path, idx: &Index) -> anyhow::Result<()> {
-    let dir = match out.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".phyllo-index-")
-        .suffix(".html.tmp")
-        .tempfile_in(dir)
-        .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
-    tmp.write_all(render(idx).as_bytes())?;
-    tmp.as_file().sync_all()?;
-    tmp.persist(out)
-        .with_context(|| format!("renaming the page into {}", out.display()))?;
-    Ok(())
+    super::atomic::replace(out, ".html", |tmp| Ok(std::fs::write(tmp, render(idx))?))
 }
 
 #[cfg(test)]

@@ -1,10 +1,12 @@
-//! Sinks: what leaves the database for people and other programs.
+//! Sinks: what leaves the database for people and other programs, each file
+//! renamed into place whole ([`atomic`]).
 //!
 //! [`export`] writes CSV atomically, [`plot`] draws a plant's timeline,
 //! [`tail`] follows the feed from another process, [`backup`] keeps checked
 //! snapshots of the database itself, [`group_report`] writes the per-group
 //! summaries and [`index_html`] the page that links the nightly export.
 
+pub mod atomic;
 pub mod backup;
 pub mod export;
 pub mod group_report;

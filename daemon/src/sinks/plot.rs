@@ -205,13 +205,7 @@ pub fn plot_all(store: &crate::store::Store, dir: &Path) -> anyhow::Result<PlotF
                     n += 1;
                     stem = format!("{}_{n}", file_stem(&plant));
                 }
-                // Drawn beside and renamed into place, so a reader never opens half a PNG
-                // (the hidden name keeps the extension the encoder goes by).
-                let tmp = dir.join(format!(".{stem}.partial.png"));
-                let out = dir.join(format!("{stem}.png"));
-                plot(&t, &tmp)?;
-                std::fs::rename(&tmp, &out)
-                    .with_context(|| format!("renaming {} to {}", tmp.display(), out.display()))?;
+                super::atomic::replace(&dir.join(format!("{stem}.png")), ".png", |tmp| plot(&t, tmp))?;
                 drawn.files.insert(plant, format!("{stem}.png"));
             }
             _ => drawn.empty += 1,
