@@ -75,13 +75,15 @@ fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Resul
         println!("{kind}: {n} rows → {}", out.display());
         index.tables.push((file, n));
     }
+    // Read once for the plots and the group summaries.
+    let timelines = store.plant_timelines()?;
     if config.export.plots {
         let plots = dir.join("plots");
-        index.plots = crate::sinks::plot::plot_all(store, &plots)?.files;
+        index.plots = crate::sinks::plot::plot_all(&timelines, &plots)?.files;
         println!("plots: {} plants → {}", index.plots.len(), plots.display());
     }
     if let Some(rule) = GroupRule::from_config(&config.groups)? {
-        let rep = group_report::report(store, &rule)?;
+        let rep = crate::groups::summarise(&rule, &timelines);
         let n = group_report::write_groups(&rule, &rep, &dir.join("groups.csv"))?;
         let d = group_report::write_days(&rule, &rep, &dir.join("group_days.csv"))?;
         println!(

@@ -39,7 +39,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     };
     let store = Store::open_read_only(&config.database)?;
-    let rep = group_report::report(&store, &rule)?;
+    let rep = crate::groups::summarise(&rule, &store.plant_timelines()?);
     if let Some(dir) = &args.csv {
         let n = group_report::write_groups(&rule, &rep, &dir.join("groups.csv"))?;
         let d = group_report::write_days(&rule, &rep, &dir.join("group_days.csv"))?;

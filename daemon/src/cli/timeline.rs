@@ -32,7 +32,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let store = Store::open_read_only(&config.database)?;
     if let Some(dir) = &args.plots {
-        let drawn = crate::sinks::plot::plot_all(&store, dir)?;
+        let drawn = crate::sinks::plot::plot_all(&store.plant_timelines()?, dir)?;
         eprintln!(
             "{} plots written to {} ({} plants without a counted session)",
             drawn.files.len(),

@@ -10,18 +10,6 @@ use plotters::prelude::*;
 
 use super::export::{format_real, write_csv};
 use crate::groups::{GroupReport, GroupRule, Spread};
-use crate::store::Store;
-
-/// Reads every plant's timeline from `store` and summarises it by `rule`.
-pub fn report(store: &Store, rule: &GroupRule) -> anyhow::Result<GroupReport> {
-    let mut plants = Vec::new();
-    for p in store.plants()? {
-        if let Some(t) = store.plant_timeline(&p)? {
-            plants.push(t);
-        }
-    }
-    Ok(crate::groups::summarise(rule, &plants))
-}
 
 fn mean(s: Option<Spread>) -> String {
     s.map_or(String::new(), |s| format_real(s.mean))

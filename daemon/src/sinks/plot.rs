@@ -191,25 +191,24 @@ pub struct PlotFiles {
 }
 
 /// Draws every plant with a session into `dir`, one PNG per plant.
-pub fn plot_all(store: &crate::store::Store, dir: &Path) -> anyhow::Result<PlotFiles> {
+pub fn plot_all(timelines: &[PlantTimeline], dir: &Path) -> anyhow::Result<PlotFiles> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut drawn = PlotFiles::default();
     let mut used = std::collections::HashSet::new();
-    for plant in store.plants()? {
-        match store.plant_timeline(&plant)? {
-            Some(t) if !t.sessions.is_empty() => {
-                // Two ids that differ only in replaced characters must not share a file.
-                let mut stem = file_stem(&plant);
-                let mut n = 1;
-                while !used.insert(stem.clone()) {
-                    n += 1;
-                    stem = format!("{}_{n}", file_stem(&plant));
-                }
-                super::atomic::replace(&dir.join(format!("{stem}.png")), ".png", |tmp| plot(&t, tmp))?;
-                drawn.files.insert(plant, format!("{stem}.png"));
-            }
-            _ => drawn.empty += 1,
+    for t in timelines {
+        if t.sessions.is_empty() {
+            drawn.empty += 1;
+            continue;
         }
+        // Two ids that differ only in replaced characters must not share a file.
+        let mut stem = file_stem(&t.plant);
+        let mut n = 1;
+        while !used.insert(stem.clone()) {
+            n += 1;
+            stem = format!("{}_{n}", file_stem(&t.plant));
+        }
+        super::atomic::replace(&dir.join(format!("{stem}.png")), ".png", |tmp| plot(t, tmp))?;
+        drawn.files.insert(t.plant.clone(), format!("{stem}.png"));
     }
     Ok(drawn)
 }

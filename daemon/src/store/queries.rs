@@ -268,6 +268,15 @@ impl Store {
         Ok(rows)
     }
 
+    /// Every plant's timeline as stored, in plant order.
+    pub fn plant_timelines(&self) -> anyhow::Result<Vec<PlantTimeline>> {
+        let mut out = Vec::new();
+        for plant in self.plants()? {
+            out.extend(self.plant_timeline(&plant)?);
+        }
+        Ok(out)
+    }
+
     /// One plant's timeline as stored.
     pub fn plant_timeline(&self, plant: &str) -> anyhow::Result<Option<PlantTimeline>> {
         let Some((id, phyllochron_days)) = self
