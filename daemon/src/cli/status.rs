@@ -64,12 +64,14 @@ pub fn findings(h: &Health) -> Vec<(Level, String)> {
     }
     match h.backup_age_hours {
         None => out.push((Level::Warning, "no database snapshot".into())),
-        Some(a) if a > STALE_BACKUP_HOURS => out.push((Level::Warning, format!("newest snapshot {a} h old"))),
+        Some(a) if a > STALE_NIGHTLY_HOURS => {
+            out.push((Level::Warning, format!("newest snapshot {a} h old")))
+        }
         _ => {}
     }
     match h.export_age_hours {
         None => out.push((Level::Warning, "no nightly export yet".into())),
-        Some(a) if a > STALE_BACKUP_HOURS => out.push((Level::Warning, format!("nightly export {a} h old"))),
+        Some(a) if a > STALE_NIGHTLY_HOURS => out.push((Level::Warning, format!("nightly export {a} h old"))),
         _ => {}
     }
     if h.failed_last_day > 0 {
@@ -104,8 +106,8 @@ pub fn check_line(found: &[(Level, String)]) -> (String, u8) {
 
 /// A heartbeat older than this means the service is not running.
 const STALE_SECS: i64 = 15;
-/// The newest snapshot older than this means the nightly backup is not running.
-const STALE_BACKUP_HOURS: i64 = 48;
+/// A snapshot or export older than this means its nightly timer is not running.
+const STALE_NIGHTLY_HOURS: i64 = 48;
 
 /// Runs `phyllo status`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
@@ -134,9 +136,7 @@ fn check(args: &Args) -> anyhow::Result<(String, u8)> {
 /// What `--check` weighs, read now from the store, the disk and the snapshots.
 pub fn health(config: &crate::config::Config, store: &Store) -> anyhow::Result<Health> {
     let svc = store.service()?;
-    let since = (chrono::Utc::now() - chrono::Duration::hours(24))
-        .format("%Y-%m-%dT%H:%M:%S%.3fZ")
-        .to_string();
+    let since = crate::store::utc(chrono::Utc::now() - chrono::Duration::hours(24));
     Ok(Health {
         state: service_state(&svc),
         free: crate::disk::free_bytes(&config.state_dir()).ok(),
@@ -163,8 +163,9 @@ fn export_age_hours(config: &crate::config::Config) -> Option<i64> {
 
 /// Hours since the newest snapshot, `None` when there is none.
 fn newest_snapshot_age(config: &crate::config::Config) -> anyhow::Result<Option<i64>> {
-    let newest = crate::sinks::backup::list(&config.backup_dir())?.pop();
-    Ok(newest.map(|s| (chrono::Local::now().naive_local() - s.taken_at).num_hours()))
+    Ok(crate::sinks::backup::list(&config.backup_dir())?
+        .pop()
+        .map(|s| s.age_hours()))
 }
 
 /// The service's state from its self-report: a stale heartbeat means it is not running.
@@ -199,9 +200,7 @@ fn show(args: Args) -> anyhow::Result<()> {
     let backup_dir = config.backup_dir();
     let snapshots = crate::sinks::backup::list(&backup_dir);
     let newest = snapshots.as_ref().ok().and_then(|s| s.last().cloned());
-    let backup_age_hours = newest
-        .as_ref()
-        .map(|s| (chrono::Local::now().naive_local() - s.taken_at).num_hours());
+    let backup_age_hours = newest.as_ref().map(|s| s.age_hours());
     let state_dir = config.state_dir();
     let free = crate::disk::free_bytes(&state_dir).ok();
     let get = |k: &str| svc.get(k).cloned().unwrap_or_else(|| "-".into());
@@ -279,7 +278,7 @@ fn show(args: Args) -> anyhow::Result<()> {
         ),
         (Ok(all), Some(s)) => {
             let age = backup_age_hours.unwrap_or(0);
-            let warn = if age > STALE_BACKUP_HOURS {
+            let warn = if age > STALE_NIGHTLY_HOURS {
                 " — older than 2 days: is phyllo-backup.timer enabled?"
             } else {
                 ""
@@ -297,7 +296,7 @@ fn show(args: Args) -> anyhow::Result<()> {
         Some(a) => println!(
             "export:    index.html written {a} h ago in {}{}",
             config.export_dir().display(),
-            if a > STALE_BACKUP_HOURS {
+            if a > STALE_NIGHTLY_HOURS {
                 " — older than 2 days: is phyllo-export.timer enabled?"
             } else {
                 ""

@@ -35,6 +35,13 @@ pub struct Snapshot {
     pub bytes: u64,
 }
 
+impl Snapshot {
+    /// Whole hours since it was taken (facility time, as its name).
+    pub fn age_hours(&self) -> i64 {
+        (chrono::Local::now().naive_local() - self.taken_at).num_hours()
+    }
+}
+
 /// What a new snapshot holds, read back from the copy itself.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Contents {

@@ -48,7 +48,12 @@ pub fn parse_iso(s: &str) -> anyhow::Result<NaiveDateTime> {
 
 /// Now, UTC, ISO 8601 with `Z`.
 pub fn now_utc() -> String {
-    chrono::Utc::now().format("%Y-%m-%dT%H:%M:%S%.3fZ").to_string()
+    utc(chrono::Utc::now())
+}
+
+/// Formats a bookkeeping time the way the database stores it (UTC, `Z`).
+pub fn utc(t: chrono::DateTime<chrono::Utc>) -> String {
+    t.format("%Y-%m-%dT%H:%M:%S%.3fZ").to_string()
 }
 
 /// What a worker knows about a file before counting it.
