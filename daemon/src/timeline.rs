@@ -87,9 +87,8 @@ impl FusionRule {
     /// A person's count (a correction, [`View::is_person`]) overrides every
     /// rule: the session's count is the mean of the people's.
     pub fn fuse(&self, views: &[(View, f64)]) -> Option<f64> {
-        let people = person_counts(views);
-        if !people.is_empty() {
-            return Some(people.iter().sum::<f64>() / people.len() as f64);
+        if let Some(people) = person_mean(views) {
+            return Some(people);
         }
         let all: Vec<f64> = views.iter().map(|(_, c)| *c).collect();
         let pool = &side_counts(views);
@@ -102,26 +101,33 @@ impl FusionRule {
             FusionRule::SecondMaxSide => second_max(pool),
             FusionRule::Max => max(&all),
             FusionRule::MedianSide => median(pool),
-            FusionRule::MeanSide => pool.iter().sum::<f64>() / pool.len() as f64,
+            FusionRule::MeanSide => mean(pool),
             FusionRule::View(want) => {
                 let hit: Vec<f64> = views.iter().filter(|(v, _)| v == want).map(|(_, c)| *c).collect();
                 if hit.is_empty() {
                     second_max(pool)
                 } else {
-                    hit.iter().sum::<f64>() / hit.len() as f64
+                    mean(&hit)
                 }
             }
         })
     }
 }
 
-/// People's counts in a session (imported corrections).
-fn person_counts(views: &[(View, f64)]) -> Vec<f64> {
-    views
+/// The mean of the people's counts in a session (imported corrections),
+/// `None` when no person counted.
+fn person_mean(views: &[(View, f64)]) -> Option<f64> {
+    let people: Vec<f64> = views
         .iter()
         .filter(|(v, _)| v.is_person())
         .map(|(_, c)| *c)
-        .collect()
+        .collect();
+    (!people.is_empty()).then(|| mean(&people))
+}
+
+/// Mean of `xs` (not empty).
+fn mean(xs: &[f64]) -> f64 {
+    xs.iter().sum::<f64>() / xs.len() as f64
 }
 
 /// How many agreeing views a person's count stands for when [`deaths`]
@@ -131,11 +137,9 @@ const PERSON_AS_VIEWS: usize = 5;
 /// What a session tells [`deaths`]: its side views' counts, or, where a
 /// person counted, that count as a full day's agreeing views.
 fn death_evidence(views: &[(View, f64)]) -> Vec<f64> {
-    let people = person_counts(views);
-    if people.is_empty() {
-        side_views(views)
-    } else {
-        vec![people.iter().sum::<f64>() / people.len() as f64; PERSON_AS_VIEWS]
+    match person_mean(views) {
+        Some(people) => vec![people; PERSON_AS_VIEWS],
+        None => side_views(views),
     }
 }
 
