@@ -69,7 +69,7 @@ impl DatabaseLock {
 }
 
 /// `<database>.lock`, beside the database.
-pub fn lock_path(database: &Path) -> PathBuf {
+fn lock_path(database: &Path) -> PathBuf {
     let mut name = database.as_os_str().to_owned();
     name.push(".lock");
     PathBuf::from(name)

@@ -20,7 +20,7 @@ pub mod migrations;
 mod queries;
 mod recount;
 
-pub use lock::{lock_path, DatabaseLock};
+pub use lock::DatabaseLock;
 pub use recount::CountedImage;
 
 use std::collections::{BTreeMap, BTreeSet};
