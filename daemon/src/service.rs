@@ -33,8 +33,6 @@ const STATUS_EVERY: Duration = Duration::from_secs(2);
 const PRUNE_FEED_EVERY: Duration = Duration::from_secs(3600);
 /// How often the free space beside the database is checked.
 const DISK_EVERY: Duration = Duration::from_secs(60);
-/// How often a low-disk warning is repeated in the log while it lasts.
-const DISK_WARN_EVERY: Duration = Duration::from_secs(3600);
 
 /// Runs the service until `shutdown` becomes true. Must be called inside a
 /// multi-threaded tokio runtime.
@@ -290,30 +288,13 @@ async fn report_status(
     prune.set_missed_tick_behavior(MissedTickBehavior::Delay);
     let mut disk = tokio::time::interval(DISK_EVERY);
     disk.set_missed_tick_behavior(MissedTickBehavior::Delay);
-    // Free bytes when low, and when the log last said so.
-    let mut low_disk: Option<u64> = None;
-    let mut warned_at: Option<std::time::Instant> = None;
+    let mut low_disk = crate::disk::LowDiskWatch::new(state_dir);
     loop {
         let prune_now = tokio::select! {
             _ = shutdown.wait_for(|s| *s) => return store,
             _ = prune.tick(), if keep_feed.is_some() => keep_feed,
             _ = disk.tick() => {
-                // A disk that fills slowly (exports, snapshots) is said before counts start failing.
-                low_disk = crate::disk::free_bytes(&state_dir)
-                    .ok()
-                    .filter(|&free| free < crate::disk::LOW_FREE_BYTES);
-                match low_disk {
-                    Some(free) if warned_at.is_none_or(|t| t.elapsed() >= DISK_WARN_EVERY) => {
-                        tracing::warn!(
-                            "only {} free beside the database in {}: counting fails when it runs out",
-                            crate::disk::human(free),
-                            state_dir.display()
-                        );
-                        warned_at = Some(std::time::Instant::now());
-                    }
-                    Some(_) => {}
-                    None => warned_at = None,
-                }
+                low_disk.check();
                 continue;
             }
             _ = tick.tick() => None,
@@ -351,7 +332,7 @@ async fn report_status(
             Ok(s) => s,
             Err(e) => panic!("status writer panicked: {e}"),
         };
-        let disk_note = low_disk.map_or(String::new(), |free| {
+        let disk_note = low_disk.low().map_or(String::new(), |free| {
             format!("; LOW DISK: {} free", crate::disk::human(free))
         });
         systemd::status(&format!(
