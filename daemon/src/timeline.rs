@@ -246,6 +246,21 @@ pub struct Session {
     pub living: f64,
 }
 
+impl Session {
+    /// A session starting at `start`, before any count joins it or any fit.
+    fn open(start: NaiveDateTime) -> Session {
+        Session {
+            start,
+            views: Vec::new(),
+            fused: 0.0,
+            weight: 0.0,
+            lost: 0.0,
+            emerged: 0.0,
+            living: 0.0,
+        }
+    }
+}
+
 /// A leaf emergence read from the steps of the leaves-emerged fit.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Event {
@@ -402,15 +417,7 @@ pub fn compute(obs: &[Obs], p: &TimelineParams) -> Timeline {
             None => true,
         };
         if new_session {
-            sessions.push(Session {
-                start: o.taken_at,
-                views: vec![],
-                fused: 0.0,
-                weight: 0.0,
-                lost: 0.0,
-                emerged: 0.0,
-                living: 0.0,
-            });
+            sessions.push(Session::open(o.taken_at));
         }
         sessions
             .last_mut()
@@ -428,18 +435,9 @@ pub fn compute(obs: &[Obs], p: &TimelineParams) -> Timeline {
             Some(s) => s.views.push((o.view.clone(), o.count)),
             None => {
                 let at = sessions.partition_point(|s| s.start <= o.taken_at);
-                sessions.insert(
-                    at,
-                    Session {
-                        start: o.taken_at,
-                        views: vec![(o.view.clone(), o.count)],
-                        fused: 0.0,
-                        weight: 0.0,
-                        lost: 0.0,
-                        emerged: 0.0,
-                        living: 0.0,
-                    },
-                );
+                let mut own = Session::open(o.taken_at);
+                own.views.push((o.view.clone(), o.count));
+                sessions.insert(at, own);
             }
         }
     }
