@@ -140,13 +140,18 @@ def genotype_table(phyllo, cfg, truth):
     got = json.loads(subprocess.run([phyllo, "groups", "-c", cfg, "--json"], check=True,
                                     capture_output=True, text=True).stdout)
     want = true_genotypes(truth)
-    lines = []
+    lines, off = [], []
     for g in got["summaries"]:
         name = g["group"][0]
         plants, emerged, rate, n = want.get(name, (0, float("nan"), float("nan"), 0))
         ph = g["phyllochron_days"] or {"mean": float("nan"), "n": 0}
         lines.append(f"| {name} | {g['plants']} | {g['leaves_emerged']['mean']:.2f} / {emerged:.2f} | "
                      f"{ph['mean']:.2f} ({ph['n']}) / {rate:.2f} ({n}) |")
+        if not math.isnan(ph["mean"] - rate):
+            off.append(abs(ph["mean"] - rate))
+    if off:
+        lines.append(f"genotype mean phyllochron, |phyllo - truth|: mean {sum(off) / len(off):.2f}, "
+                     f"max {max(off):.2f} d/leaf ({len(off)} genotypes)")
     return lines
 
 
