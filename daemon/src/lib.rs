@@ -22,6 +22,7 @@ pub mod counting;
 pub mod disk;
 pub mod evaluation;
 pub mod groups;
+pub mod import_journal;
 pub mod names;
 pub mod recount;
 pub mod service;

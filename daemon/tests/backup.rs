@@ -63,6 +63,17 @@ fn snapshot_while_counting_then_restore_recovers_every_count() {
     let printed = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(printed.contains("integrity ok"), "{printed}");
     writer.join().unwrap();
+    // A person's correction, imported after the snapshot: in no snapshot,
+    // only in the import journal.
+    let fix = site.tmp.path().join("fixes.csv");
+    std::fs::write(
+        &fix,
+        "plant,timestamp,view,leaf_count\nB00,2018-04-01,human,9\nB01,2018-04-01,human:ana,8\n",
+    )
+    .unwrap();
+    let out = site.phyllo(&["import", fix.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::remove_file(&fix).unwrap();
     let backups = site.state.join("backups");
     let snaps: Vec<_> = std::fs::read_dir(&backups)
         .unwrap()
@@ -118,7 +129,7 @@ fn snapshot_while_counting_then_restore_recovers_every_count() {
     );
 
     site.wait_for("every image", Duration::from_secs(60 + 2 * n as u64), || {
-        site.q("SELECT COUNT(*) FROM observations") >= 2 * n as i64
+        site.q("SELECT COUNT(*) FROM observations WHERE image_id IS NOT NULL") >= 2 * n as i64
     });
     assert!(d.term().success());
     let check = site.phyllo(&["status", "--check"]);
@@ -131,6 +142,9 @@ fn snapshot_while_counting_then_restore_recovers_every_count() {
     assert!(String::from_utf8_lossy(&check.stdout).starts_with("phyllo CRITICAL: service stopped"));
     let before = state(&site.db);
     assert_eq!(before.iter().filter(|r| r.contains("|counted|")).count(), 2 * n);
+    let fused_b00 = "SELECT s.fused FROM sessions s JOIN plants p ON p.id = s.plant_id
+                     WHERE p.name = 'B00' AND s.start LIKE '2018-04-01%'";
+    assert_eq!(rows(&site.db, fused_b00), ["9.000000"], "the correction holds");
 
     // The disk garbles the database; the snapshot comes back, and the service
     // counts what landed after it again.
@@ -144,6 +158,12 @@ fn snapshot_while_counting_then_restore_recovers_every_count() {
         "phyllo restore: {}",
         String::from_utf8_lossy(&out.stderr)
     );
+    let printed = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        printed.contains("imported: ") && printed.contains("fixes.csv again (2 counts for 2 plants"),
+        "{printed}"
+    );
+    assert_eq!(rows(&site.db, fused_b00), ["9.000000"], "the correction is back");
     let aside: Vec<String> = std::fs::read_dir(&site.state)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -160,7 +180,7 @@ fn snapshot_while_counting_then_restore_recovers_every_count() {
     site.wait_for(
         "the images after the snapshot",
         Duration::from_secs(60 + 2 * n as u64),
-        || site.q("SELECT COUNT(*) FROM observations") >= 2 * n as i64,
+        || site.q("SELECT COUNT(*) FROM observations WHERE image_id IS NOT NULL") >= 2 * n as i64,
     );
     std::thread::sleep(Duration::from_millis(500));
     assert!(d.term().success());
@@ -221,4 +241,60 @@ fn a_snapshot_that_would_fill_its_disk_is_refused() {
     );
     let left = std::fs::read_dir(small.join("backups")).unwrap().count();
     assert_eq!(left, 0, "nothing written");
+}
+
+/// The imports made after a snapshot are taken again by a restore, from the
+/// import journal, or left out with `--no-reimport` (to undo a bad one).
+#[test]
+fn a_restore_takes_the_later_imports_again_unless_told_not_to() {
+    let site = Site::new("", "");
+    let csv = |name: &str, body: &str| {
+        let p = site.tmp.path().join(name);
+        std::fs::write(&p, format!("plant,timestamp,view,leaf_count\n{body}")).unwrap();
+        p
+    };
+    let model = csv(
+        "model.csv",
+        "P1,2026-11-01T10:00:00,SV_0,5\nP1,2026-11-03T10:00:00,SV_0,6\n",
+    );
+    assert!(site.phyllo(&["import", model.to_str().unwrap()]).status.success());
+    let out = site.phyllo(&["backup"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let snap = std::fs::read_dir(site.state.join("backups"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let fix = csv("fix.csv", "P1,2026-11-03,human,8\n");
+    let out = site.phyllo(&["import", fix.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("kept as "));
+    let emerged = "SELECT leaves_emerged FROM plants WHERE name = 'P1'";
+    assert_eq!(rows(&site.db, emerged), ["8.000000"]);
+
+    let out = site.phyllo(&["restore", "--no-reimport", snap.to_str().unwrap()]);
+    let printed = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        printed.contains("left out: ") && printed.contains("fix.csv (imported after the snapshot)"),
+        "{printed}"
+    );
+    assert_eq!(rows(&site.db, emerged), ["6.000000"], "as in the snapshot");
+
+    let out = site.phyllo(&["restore", snap.to_str().unwrap()]);
+    let printed = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        printed.contains("fix.csv again (1 counts for 1 plants"),
+        "{printed}"
+    );
+    assert!(
+        !printed.contains("model.csv"),
+        "in the snapshot already: {printed}"
+    );
+    assert_eq!(rows(&site.db, emerged), ["8.000000"], "the correction is back");
+    assert_eq!(
+        site.q("SELECT COUNT(*) FROM observations"),
+        3,
+        "each count once, under its file's name"
+    );
 }

@@ -7,8 +7,9 @@ use anyhow::{bail, Context};
 use chrono::{NaiveDate, NaiveDateTime};
 
 use super::ConfigArg;
+use crate::import_journal;
 use crate::names::View;
-use crate::store::Store;
+use crate::store::{Store, WritersLock};
 
 /// Arguments of `phyllo import`.
 #[derive(Debug, clap::Args)]
@@ -22,21 +23,38 @@ pub struct Args {
     file: PathBuf,
 }
 
-/// Runs `phyllo import`.
+/// Runs `phyllo import`: the CSV is checked, kept in the import journal,
+/// then stored, with the journal entry recorded beside its counts.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
-    let rows = read_rows(&args.file)?;
-    let mut store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
-    let source = args
-        .file
-        .file_name()
-        .map_or("import".into(), |n| n.to_string_lossy().into_owned());
-    let (n, plants) = store.import(&source, &rows)?;
+    let _writing = WritersLock::shared(&config.database)?;
+    read_rows(&args.file)?;
+    let journal = import_journal::dir(&config.state_dir());
+    let kept = import_journal::keep(&journal, &args.file, chrono::Local::now().naive_local())?;
+    let entry = kept.entry;
+    let imported = Store::open(&config.database, &config.timeline, config.inference.max_attempts)
+        .and_then(|mut store| take(&mut store, &entry));
+    let (n, plants) = match imported {
+        Ok(done) => done,
+        Err(e) => {
+            if kept.copied {
+                import_journal::forget(&journal, &entry)?;
+            }
+            return Err(e);
+        }
+    };
     println!(
-        "imported {n} counts for {plants} plants from {}",
-        args.file.display()
+        "imported {n} counts for {plants} plants from {} (kept as {})",
+        args.file.display(),
+        entry.file.display()
     );
     Ok(())
+}
+
+/// Imports one journal entry into `store`; returns (rows, plants).
+pub fn take(store: &mut Store, entry: &import_journal::Entry) -> anyhow::Result<(usize, usize)> {
+    let rows = read_rows(&entry.file)?;
+    store.import(&entry.source(), &rows, Some(&entry.id))
 }
 
 /// Reads and validates the CSV; errors name the file, line and problem.

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use super::ConfigArg;
 use crate::counting::onnx_counter;
 use crate::recount::recount;
-use crate::store::Store;
+use crate::store::{Store, WritersLock};
 
 /// Arguments of `phyllo recount`.
 #[derive(Debug, clap::Args)]
@@ -25,6 +25,7 @@ pub struct Args {
 /// Runs `phyllo recount`; exit 1 if any image could not be counted.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let config = args.config.load()?;
+    let _writing = WritersLock::shared(&config.database)?;
     let counter = onnx_counter(&config.inference)?;
     let mut store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
     let s = recount(

@@ -1,9 +1,11 @@
-//! `phyllo restore --config FILE SNAPSHOT`.
+//! `phyllo restore --config FILE SNAPSHOT [--no-reimport]`.
 
 use std::path::PathBuf;
 
 use super::ConfigArg;
+use crate::import_journal;
 use crate::sinks::backup;
+use crate::store::{RestoreLock, Store};
 
 /// Arguments of `phyllo restore`.
 #[derive(Debug, clap::Args)]
@@ -13,13 +15,18 @@ pub struct Args {
     /// The snapshot to restore (from `phyllo backup --list`).
     #[arg(value_name = "SNAPSHOT")]
     snapshot: PathBuf,
+    /// Leave out the imports made after the snapshot (to undo a bad import);
+    /// they are listed, and stay in the import journal.
+    #[arg(long)]
+    no_reimport: bool,
 }
 
 /// Runs `phyllo restore`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let now = chrono::Local::now().naive_local();
-    let done = backup::restore(&args.snapshot, &config.database, now)?;
+    let held = RestoreLock::acquire(&config.database)?;
+    let done = backup::restore(&args.snapshot, &config.database, now, &held)?;
     println!(
         "restored: {} → {} (integrity ok; schema {}, {} image versions, {} plants)",
         args.snapshot.display(),
@@ -31,9 +38,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for p in &done.moved_aside {
         println!("kept:     {} (the database's former file)", p.display());
     }
-    println!(
-        "next:     start the service; it counts the images dropped since the snapshot again. \
-         Counts imported since then need `phyllo import` again."
-    );
+    // Opening the store brings an older snapshot to this schema, whose
+    // import records start empty: every journal entry then counts as later.
+    let mut store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
+    let later = import_journal::missing(
+        &import_journal::dir(&config.state_dir()),
+        &store.journaled_imports()?,
+    )?;
+    for entry in &later {
+        if args.no_reimport {
+            println!("left out: {} (imported after the snapshot)", entry.file.display());
+        } else {
+            let (n, plants) = super::import::take(&mut store, entry)?;
+            println!(
+                "imported: {} again ({n} counts for {plants} plants, imported after the snapshot)",
+                entry.file.display()
+            );
+        }
+    }
+    println!("next:     start the service; it counts the images dropped since the snapshot again.");
     Ok(())
 }

@@ -33,6 +33,13 @@ pub fn replace<T>(
     Ok(value)
 }
 
+/// Makes a rename or deletion in `dir` durable.
+pub fn sync_dir(dir: &Path) -> anyhow::Result<()> {
+    std::fs::File::open(dir)
+        .and_then(|d| d.sync_all())
+        .with_context(|| format!("syncing directory {}", dir.display()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

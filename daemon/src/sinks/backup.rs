@@ -15,6 +15,8 @@ use anyhow::{bail, Context};
 use chrono::NaiveDateTime;
 use rusqlite::{Connection, OpenFlags};
 
+use super::atomic::sync_dir;
+
 /// File-name prefix and suffix of a snapshot: `phyllo-<YYYY-MM-DD>T<HHMMSS>[-N].sqlite`.
 const PREFIX: &str = "phyllo-";
 const SUFFIX: &str = ".sqlite";
@@ -156,7 +158,13 @@ pub struct Restored {
 /// `-wal` and `-shm` included: a write-ahead log left beside a restored
 /// database would be replayed onto it and corrupt it. Images dropped after
 /// the snapshot are found by the next start's scan and counted again.
-pub fn restore(snapshot: &Path, database: &Path, now: NaiveDateTime) -> anyhow::Result<Restored> {
+/// `_held` shows that no service, import or recount is writing the database.
+pub fn restore(
+    snapshot: &Path,
+    database: &Path,
+    now: NaiveDateTime,
+    _held: &crate::store::RestoreLock,
+) -> anyhow::Result<Restored> {
     let contents = check(snapshot)?;
     let known = crate::store::migrations::SCHEMA_VERSION as i64;
     if contents.schema > known {
@@ -166,7 +174,6 @@ pub fn restore(snapshot: &Path, database: &Path, now: NaiveDateTime) -> anyhow::
             contents.schema
         );
     }
-    let _lock = crate::store::DatabaseLock::acquire(database, "phyllo restore")?;
     let dir = match database.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -332,13 +339,6 @@ fn remove_stale_work(dir: &Path) {
             }
         }
     }
-}
-
-/// Makes a rename or deletion in `dir` durable.
-fn sync_dir(dir: &Path) -> anyhow::Result<()> {
-    std::fs::File::open(dir)
-        .and_then(|d| d.sync_all())
-        .with_context(|| format!("syncing directory {}", dir.display()))
 }
 
 #[cfg(test)]
@@ -508,12 +508,11 @@ mod tests {
         // The live database's write-ahead log must go aside with it.
         std::fs::write(tmp.path().join("live.sqlite-wal"), b"stale log").unwrap();
         let held = crate::store::DatabaseLock::acquire(&live, "phyllo serve").unwrap();
-        let err = restore(&snap.path, &live, at("2026-12-05 09:00:00"))
-            .unwrap_err()
-            .to_string();
+        let err = crate::store::RestoreLock::acquire(&live).unwrap_err().to_string();
         assert!(err.contains("phyllo serve"), "{err}");
         drop(held);
-        let done = restore(&snap.path, &live, at("2026-12-05 09:00:00")).unwrap();
+        let lock = crate::store::RestoreLock::acquire(&live).unwrap();
+        let done = restore(&snap.path, &live, at("2026-12-05 09:00:00"), &lock).unwrap();
         assert_eq!(done.contents.images, 3);
         let aside: Vec<String> = done
             .moved_aside
@@ -548,7 +547,8 @@ mod tests {
         conn.pragma_update(None, "user_version", newer).unwrap();
         let (snap, _) = snapshot(&conn, &tmp.path().join("backups"), at("2026-12-05 02:30:00")).unwrap();
         let live = tmp.path().join("other.sqlite");
-        let err = restore(&snap.path, &live, at("2026-12-05 09:00:00"))
+        let lock = crate::store::RestoreLock::acquire(&live).unwrap();
+        let err = restore(&snap.path, &live, at("2026-12-05 09:00:00"), &lock)
             .unwrap_err()
             .to_string();
         assert!(err.contains("newer than this phyllo"), "{err}");

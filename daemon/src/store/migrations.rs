@@ -124,6 +124,17 @@ CREATE TABLE meta (
     value TEXT NOT NULL
 ) WITHOUT ROWID;
 "#,
+    // 4: the imports this database holds, by their entry in the import
+    // journal, so a restored snapshot knows which later imports to take again.
+    r#"
+CREATE TABLE imports (
+    journal     TEXT PRIMARY KEY,             -- the entry under <state>/imports/
+    source      TEXT NOT NULL,                -- the CSV's file name
+    rows        INTEGER NOT NULL,
+    plants      INTEGER NOT NULL,
+    imported_at TEXT NOT NULL                 -- ISO 8601, UTC
+) WITHOUT ROWID;
+"#,
 ];
 
 /// The schema version this build writes (`PRAGMA user_version` after [`migrate`]).

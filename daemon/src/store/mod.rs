@@ -20,7 +20,7 @@ pub mod migrations;
 mod queries;
 mod recount;
 
-pub use lock::DatabaseLock;
+pub use lock::{DatabaseLock, RestoreLock, WritersLock};
 pub use recount::CountedImage;
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -405,11 +405,13 @@ impl Store {
 
     /// Ingests counts made elsewhere, in one transaction. Re-importing the
     /// same row (plant, time, view, source) replaces its count rather than
-    /// adding a second one. Returns (rows, plants).
+    /// adding a second one. `journal` names the file's entry in the import
+    /// journal ([`crate::import_journal`]), recorded with it. Returns (rows, plants).
     pub fn import(
         &mut self,
         source: &str,
         rows: &[(String, NaiveDateTime, View, u32)],
+        journal: Option<&str>,
     ) -> anyhow::Result<(usize, usize)> {
         let now = now_utc();
         let model_id = format!("import:{source}");
@@ -458,8 +460,22 @@ impl Store {
                 &now,
             )?;
         }
+        if let Some(journal) = journal {
+            tx.execute(
+                "INSERT OR REPLACE INTO imports (journal, source, rows, plants, imported_at)
+                 VALUES (?1, ?2, ?3, ?4, ?5)",
+                params![journal, source, rows.len(), plants.len(), now],
+            )?;
+        }
         tx.commit()?;
         Ok((rows.len(), plants.len()))
+    }
+
+    /// The import-journal entries this database holds.
+    pub fn journaled_imports(&self) -> anyhow::Result<BTreeSet<String>> {
+        let mut stmt = self.conn.prepare("SELECT journal FROM imports")?;
+        let ids = stmt.query_map([], |r| r.get(0))?;
+        Ok(ids.collect::<Result<_, _>>()?)
     }
 
     /// Sets keys of the service's self-report.

@@ -317,8 +317,8 @@ fn import_is_fused_like_model_counts_and_idempotent() {
         ("P1".to_string(), day(1), View::parse("human"), 11),
         ("P2".to_string(), day(0), View::parse("SV_108"), 5),
     ];
-    assert_eq!(s.import("manual.csv", &rows).unwrap(), (3, 2));
-    assert_eq!(s.import("manual.csv", &rows).unwrap(), (3, 2));
+    assert_eq!(s.import("manual.csv", &rows, None).unwrap(), (3, 2));
+    assert_eq!(s.import("manual.csv", &rows, None).unwrap(), (3, 2));
     assert_eq!(s.image_counts().unwrap().imported, 3);
     let t = s.plant_timeline("P1").unwrap().unwrap();
     assert_eq!(t.sessions.len(), 2);
@@ -348,7 +348,7 @@ fn a_leaf_read_as_lost_reaches_the_feed_once() {
             })
         })
         .collect();
-    s.import("a.csv", &rows).unwrap();
+    s.import("a.csv", &rows, None).unwrap();
     let lost = |s: &Store| -> Vec<(String, String)> {
         s.conn()
             .prepare("SELECT taken_at, message FROM feed WHERE kind = 'lost'")
@@ -366,7 +366,7 @@ fn a_leaf_read_as_lost_reaches_the_feed_once() {
     assert_eq!(t.sessions.last().unwrap().leaves_lost, 1.0);
     assert_eq!(t.sessions.last().unwrap().leaves_emerged, 8.0);
     // The same counts again: nothing new is lost.
-    s.import("a.csv", &rows).unwrap();
+    s.import("a.csv", &rows, None).unwrap();
     assert_eq!(lost(&s).len(), 1);
 }
 
