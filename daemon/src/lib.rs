@@ -7,7 +7,7 @@
 //! source::watch / source::scan ─► source::intake (stability, dedupe) ─► bounded queue
 //!   ─► worker (hash, names, counter off the async runtime) ─► store (one transaction per image)
 //!   ─► timeline (view fusion, isotonic fit, events) ─► sinks: tail, export, plot, status, backup
-//!   (groups: plants → genotype / treatment summaries, for export)
+//!   (groups: plants → genotype / treatment summaries; review: the days to check; for export)
 //! ```
 //!
 //! [`config`] is the TOML file; [`service`] wires the stages for `phyllo serve`.
@@ -25,6 +25,7 @@ pub mod groups;
 pub mod import_journal;
 pub mod names;
 pub mod recount;
+pub mod review;
 pub mod service;
 pub mod sinks;
 pub mod source;

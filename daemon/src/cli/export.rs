@@ -6,7 +6,7 @@ use super::ConfigArg;
 use crate::config::Config;
 use crate::groups::GroupRule;
 use crate::sinks::export::{self, KINDS};
-use crate::sinks::{group_report, index_html};
+use crate::sinks::{group_report, index_html, review_sheet};
 use crate::store::Store;
 
 /// Arguments of `phyllo export`.
@@ -29,17 +29,11 @@ pub struct Args {
 /// Runs `phyllo export`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
-    let since = match &args.since {
-        Some(s) => Some(crate::store::iso(super::import::parse_timestamp(s).map(|t| {
-            // A bare date means from the start of that day.
-            if s.len() == 10 {
-                t.date().and_hms_opt(0, 0, 0).expect("midnight exists")
-            } else {
-                t
-            }
-        })?)),
-        None => None,
-    };
+    let since = args
+        .since
+        .as_deref()
+        .map(super::import::parse_since)
+        .transpose()?;
     let store = Store::open_read_only(&config.database)?;
     match args.out {
         Some(out) => {
@@ -52,8 +46,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// What the nightly timer runs: every table into `[export] dir`, every
-/// plant's plot, the group summaries when configured, and `index.html`
-/// linking them all.
+/// plant's plot, the group summaries when configured, the review sheet of
+/// the days most in doubt, and `index.html` linking them all.
 fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Result<()> {
     let dir = config.export_dir();
     let mut index = index_html::Index {
@@ -82,6 +76,12 @@ fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Resul
         index.plots = crate::sinks::plot::plot_all(&timelines, &plots)?.files;
         println!("plots: {} plants → {}", index.plots.len(), plots.display());
     }
+    let ranked = crate::review::rank(&timelines, None);
+    let items = review_sheet::items(store, &ranked, crate::review::NIGHTLY)?;
+    let n = review_sheet::write(&dir.join("review.csv"), &items)?;
+    println!("review: the {n} sessions most in doubt of {}", ranked.len());
+    index.tables.push(("review.csv".into(), n));
+    index.review = (ranked.len(), review_sheet::rows(&items));
     if let Some(rule) = GroupRule::from_config(&config.groups)? {
         let rep = crate::groups::summarise(&rule, &timelines);
         let n = group_report::write_groups(&rule, &rep, &dir.join("groups.csv"))?;

@@ -28,7 +28,7 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let _writing = WritersLock::shared(&config.database)?;
-    read_rows(&args.file)?;
+    let skipped = read_rows(&args.file)?.skipped;
     let journal = import_journal::dir(&config.state_dir());
     let kept = import_journal::keep(&journal, &args.file, chrono::Local::now().naive_local())?;
     let entry = kept.entry;
@@ -44,21 +44,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     };
     println!(
-        "imported {n} counts for {plants} plants from {} (kept as {})",
+        "imported {n} counts for {plants} plants from {} (kept as {}){}",
         args.file.display(),
-        entry.file.display()
+        entry.file.display(),
+        if skipped > 0 {
+            format!("; {skipped} rows without a leaf_count skipped")
+        } else {
+            String::new()
+        }
     );
     Ok(())
 }
 
 /// Imports one journal entry into `store`; returns (rows, plants).
 pub fn take(store: &mut Store, entry: &import_journal::Entry) -> anyhow::Result<(usize, usize)> {
-    let rows = read_rows(&entry.file)?;
-    store.import(&entry.source(), &rows, Some(&entry.id))
+    let sheet = read_rows(&entry.file)?;
+    store.import(&entry.source(), &sheet.rows, Some(&entry.id))
 }
 
 /// Reads and validates the CSV; errors name the file, line and problem.
-pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Vec<(String, NaiveDateTime, View, u32)>> {
+pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Sheet> {
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_path(path)
@@ -81,6 +86,7 @@ pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Vec<(String, NaiveDat
     };
     let (cp, ct, cv, cc) = (col("plant")?, col("timestamp")?, col("view")?, col("leaf_count")?);
     let mut rows = Vec::new();
+    let mut skipped = 0;
     for (i, rec) in rdr.records().enumerate() {
         let line = i + 2;
         let rec = rec.with_context(|| format!("{}:{line}", path.display()))?;
@@ -97,6 +103,11 @@ pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Vec<(String, NaiveDat
             bail!("{}:{line}: empty view", path.display());
         }
         let count = field(cc);
+        if count.is_empty() {
+            // A review sheet's session nobody counted.
+            skipped += 1;
+            continue;
+        }
         let count: u32 = count
             .parse()
             .with_context(|| format!("{}:{line}: leaf_count '{count}' is not a count", path.display()))?;
@@ -109,7 +120,28 @@ pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Vec<(String, NaiveDat
         }
         rows.push((plant, taken_at, View::parse(&view), count));
     }
-    Ok(rows)
+    Ok(Sheet { rows, skipped })
+}
+
+/// The rows of an import CSV.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sheet {
+    /// (plant, taken at, view, leaf count), one per row with a count.
+    pub rows: Vec<(String, NaiveDateTime, View, u32)>,
+    /// Rows with an empty `leaf_count` (a review sheet's sessions nobody counted).
+    pub skipped: usize,
+}
+
+/// A `--since` bound as stored (ISO 8601): any form [`parse_timestamp`]
+/// accepts, a bare date meaning from the start of that day.
+pub fn parse_since(s: &str) -> anyhow::Result<String> {
+    let t = parse_timestamp(s)?;
+    let t = if s.trim().len() == 10 {
+        t.date().and_hms_opt(0, 0, 0).expect("midnight exists")
+    } else {
+        t
+    };
+    Ok(crate::store::iso(t))
 }
 
 /// Parses the timestamp forms `phyllo import` accepts.

@@ -10,6 +10,7 @@ pub mod groups;
 pub mod import;
 pub mod recount;
 pub mod restore;
+pub mod review;
 pub mod serve;
 pub mod status;
 pub mod tail;
@@ -49,6 +50,8 @@ pub enum Command {
     Timeline(timeline::Args),
     /// Summarise the plants per group (genotype, treatment, ... read from plant ids).
     Groups(groups::Args),
+    /// List the plant sessions most in doubt, to count by hand and import back.
+    Review(review::Args),
     /// Show the service's queue, progress, failures and model.
     Status(status::Args),
     /// Snapshot the database (checked, renamed into place), keeping the newest N.
@@ -89,6 +92,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Export(a) => ok(export::run(a)),
         Command::Timeline(a) => ok(timeline::run(a)),
         Command::Groups(a) => ok(groups::run(a)),
+        Command::Review(a) => ok(review::run(a)),
         Command::Status(a) => status::run(a),
         Command::Backup(a) => ok(backup::run(a)),
         Command::Restore(a) => ok(restore::run(a)),

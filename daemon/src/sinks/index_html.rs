@@ -29,6 +29,9 @@ pub struct Index {
     pub unmatched: usize,
     /// Images that failed in all, and the newest failures (path, error).
     pub failed: (i64, Vec<(String, String)>),
+    /// Sessions in doubt in all, and the review sheet's rows
+    /// ([`super::review_sheet::COLUMNS`]) of the most doubtful.
+    pub review: (usize, Vec<Vec<String>>),
 }
 
 /// Renders the page.
@@ -85,12 +88,36 @@ pub fn render(idx: &Index) -> String {
             text(cell).into_owned()
         });
     }
-    h.push_str("<h2>Plants</h2>\n");
-    let (head, rows) = &idx.plants;
-    table(&mut h, head, rows, |col, cell| match (col, idx.plots.get(cell)) {
+    // A table's first column, the plant, links to its plot.
+    let plant_linked = |col: usize, cell: &str| match (col, idx.plots.get(cell)) {
         (0, Some(png)) => format!("<a href=\"plots/{}\">{}</a>", attr(png), text(cell)),
         _ => text(cell).into_owned(),
-    });
+    };
+    let (in_doubt, sheet) = &idx.review;
+    if !sheet.is_empty() {
+        h.push_str(&format!(
+            "<h2>Days to check</h2>\n<p>{in_doubt} plant sessions are in doubt (the day's count \
+             departs from the timeline, or most side views disagree with it); the {} most doubtful below. \
+             Count them by hand, fill in <code>leaf_count</code> in <a href=\"review.csv\">review.csv</a> \
+             and hand it to <code>phyllo import</code>: a person's count overrides the model's.</p>\n",
+            sheet.len()
+        ));
+        // The columns a reader needs; the empty view and leaf_count and the
+        // image paths stay in the CSV.
+        let shown = [0, 1, 4, 5, 6, 7];
+        let head: Vec<String> = shown
+            .iter()
+            .map(|&i| super::review_sheet::COLUMNS[i].to_string())
+            .collect();
+        let rows: Vec<Vec<String>> = sheet
+            .iter()
+            .map(|r| shown.iter().map(|&i| r[i].clone()).collect())
+            .collect();
+        table(&mut h, &head, &rows, &plant_linked);
+    }
+    h.push_str("<h2>Plants</h2>\n");
+    let (head, rows) = &idx.plants;
+    table(&mut h, head, rows, &plant_linked);
     h.push_str("</body>\n</html>\n");
     h
 }
@@ -136,6 +163,22 @@ mod tests {
             groups_plot: Some("groups.png".into()),
             unmatched: 1,
             failed: (3, vec![("drop/bad<1>.png".into(), "truncated PNG".into())]),
+            review: (
+                7,
+                vec![[
+                    "A-1",
+                    "2026-11-02T08:00:00.000",
+                    "human",
+                    "",
+                    "8",
+                    "7",
+                    "SV_0 8 SV_36 7",
+                    "count 8 where the timeline has 7",
+                    "a<1>.png",
+                ]
+                .map(String::from)
+                .to_vec()],
+            ),
         };
         let page = render(&idx);
         assert!(page.contains("<a href=\"plots/A-1.png\">A-1</a>"), "{page}");
@@ -147,6 +190,15 @@ mod tests {
         assert!(page.contains("<img src=\"groups.png\""));
         assert!(page.contains("1 plants match no group pattern"));
         assert!(page.contains("3 images could not be counted"));
+        assert!(page.contains("7 plant sessions are in doubt"), "{page}");
+        assert!(
+            page.contains(
+                "<tr><td><a href=\"plots/A-1.png\">A-1</a></td><td>2026-11-02T08:00:00.000</td>\
+                 <td>8</td><td>7</td><td>SV_0 8 SV_36 7</td><td>count 8 where the timeline has 7</td></tr>"
+            ),
+            "{page}"
+        );
+        assert!(!page.contains("a<1>.png"), "image paths stay in the sheet");
         assert!(page.contains("<code>phyllo WARNING: 3 images failed in the last 24 h</code>"));
         assert!(
             page.contains("<td>drop/bad&lt;1&gt;.png</td><td>truncated PNG</td>"),

@@ -4,7 +4,8 @@
 //! [`export`] writes CSV atomically, [`plot`] draws a plant's timeline,
 //! [`tail`] follows the feed from another process, [`backup`] keeps checked
 //! snapshots of the database itself, [`group_report`] writes the per-group
-//! summaries and [`index_html`] the page that links the nightly export.
+//! summaries, [`review_sheet`] the days to check as a sheet to fill in and
+//! import, and [`index_html`] the page that links the nightly export.
 
 pub mod atomic;
 pub mod backup;
@@ -12,4 +13,5 @@ pub mod export;
 pub mod group_report;
 pub mod index_html;
 pub mod plot;
+pub mod review_sheet;
 pub mod tail;

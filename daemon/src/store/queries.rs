@@ -232,6 +232,28 @@ impl Store {
         Ok(rows)
     }
 
+    /// The counted images of `plant` taken at or after `from` and before
+    /// `until` (one session's, with the next session's start): (path, view).
+    pub fn session_images(
+        &self,
+        plant: &str,
+        from: &str,
+        until: Option<&str>,
+    ) -> anyhow::Result<Vec<(String, String)>> {
+        let mut stmt = self.conn.prepare(
+            "SELECT i.path, COALESCE(i.view, '') FROM images i JOIN plants p ON p.id = i.plant_id
+             WHERE p.name = ?1 AND i.state = 'counted' AND i.superseded = 0
+               AND i.taken_at >= ?2 AND (?3 IS NULL OR i.taken_at < ?3)
+             ORDER BY i.taken_at, i.view",
+        )?;
+        let rows = stmt
+            .query_map(rusqlite::params![plant, from, until], |r| {
+                Ok((r.get(0)?, r.get(1)?))
+            })?
+            .collect::<Result<_, _>>()?;
+        Ok(rows)
+    }
+
     /// Images recorded as failed at or after `since` (UTC, as `updated_at` is stored).
     pub fn failures_since(&self, since: &str) -> anyhow::Result<i64> {
         Ok(self.conn.query_row(
