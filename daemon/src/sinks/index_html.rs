@@ -113,11 +113,11 @@ pub fn render(idx: &Index) -> String {
             .iter()
             .map(|r| shown.iter().map(|&i| r[i].clone()).collect())
             .collect();
-        table(&mut h, &head, &rows, &plant_linked);
+        table(&mut h, &head, &rows, plant_linked);
     }
     h.push_str("<h2>Plants</h2>\n");
     let (head, rows) = &idx.plants;
-    table(&mut h, head, rows, &plant_linked);
+    table(&mut h, head, rows, plant_linked);
     h.push_str("</body>\n</html>\n");
     h
 }
