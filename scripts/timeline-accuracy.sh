@@ -13,7 +13,9 @@
 #   render resumes), MODEL [models/phyllo.onnx], THREADS [2],
 #   RULES ["second-max-side median-side max-side mean-side max view:SV_108"], the first the daemon's default;
 #   a rule may carry [timeline] settings after commas: "second-max-side,death_penalty=0";
-#   KEEP [unset]: keep each rule's store in KEEP/<n>/ (0: the first rule), to plot any plant after.
+#   KEEP [unset]: keep each rule's store in KEEP/<n>/ (0: the first rule), to plot any plant after;
+#   REVIEW [unset]: REVIEW=1 also measures people's counts on the days `phyllo review` lists
+#   against as many days at random (a table; about 20 s more per 1000 plant-days).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 plants=${PLANTS:-36}
@@ -39,4 +41,5 @@ if [ ! -s "$counts" ] || [ "$(wc -l <"$counts")" -ne "$frames" ]; then
 fi
 # shellcheck disable=SC2086 # RULES is a word list
 python3 "$root/scripts/timeline_accuracy.py" --phyllo "$bin/phyllo" --sequence "$dir" --counts "$counts" \
-  --rules ${RULES:-second-max-side median-side max-side mean-side max view:SV_108} ${KEEP:+--keep "$KEEP"}
+  --rules ${RULES:-second-max-side median-side max-side mean-side max view:SV_108} ${KEEP:+--keep "$KEEP"} \
+  ${REVIEW:+--review}

@@ -15,6 +15,7 @@ import hashlib
 import json
 import math
 import os
+import random
 import re
 import shutil
 import subprocess
@@ -107,6 +108,72 @@ def run_timeline(phyllo, obs, rule, work):
         subprocess.run([phyllo, "export", "-c", cfg, "--what", what, "--out", path], check=True, capture_output=True)
         out[what] = read_csv(path)
     return out["timeline"], out["events"]
+
+
+def review_sessions(phyllo, cfg, top):
+    """`phyllo review --json`: the `top` sessions most in doubt, (plant, start) each."""
+    out = subprocess.run([phyllo, "review", "-c", cfg, "--json", "--top", str(top)],
+                         check=True, capture_output=True, text=True).stdout
+    return [(d["plant"], d["start"]) for d in json.loads(out)]
+
+
+def corrected_run(phyllo, obs, rule, work, truth_by, pick):
+    """A store as `run_timeline` makes it, then a person's count (the true living
+    leaves) imported for the sessions `pick(cfg, timeline)` names, as a filled
+    review sheet; returns (timeline, events) after."""
+    timeline, _ = run_timeline(phyllo, obs, rule, work)
+    cfg = os.path.join(work, "phyllo.toml")
+    sheet = os.path.join(work, "sheet.csv")
+    with open(sheet, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["plant", "timestamp", "view", "leaf_count"])
+        for plant, start in pick(cfg, timeline):
+            w.writerow([plant, start, "human", truth_by[(plant, start[:10])]])
+    subprocess.run([phyllo, "import", "-c", cfg, sheet], check=True, capture_output=True)
+    out = {}
+    for what in ("timeline", "events"):
+        path = os.path.join(work, f"{what}.csv")
+        subprocess.run([phyllo, "export", "-c", cfg, "--what", what, "--out", path], check=True, capture_output=True)
+        out[what] = read_csv(path)
+    return out["timeline"], out["events"]
+
+
+def review_table(phyllo, obs, rule, truth, scratch):
+    """What a person's counts on the days `phyllo review` lists are worth, against
+    as many days picked at random: lines of a markdown table."""
+    truth_by = {(t["plant"], t["date"]): int(t["living_leaves"]) for t in truth}
+    lines = []
+
+    def row(label, k, timeline, events):
+        fused, _, emerged, _, errs, _, _, _, _, ph = score(truth, timeline, events)
+        exact = lambda e: 100 * sum(math.floor(x + 0.5) == 0 for x in e) / len(e)
+        lines.append(f"| {label} | {k} | {exact(fused):.1f} | {exact(emerged):.1f} | "
+                     f"{sum(abs(e) for e in errs) / max(len(errs), 1):.2f} | {sum(abs(e) for e in ph) / max(len(ph), 1):.3f} |")
+
+    base = os.path.join(scratch, "review-none")
+    timeline, events = run_timeline(phyllo, obs, rule, base)
+    cfg = os.path.join(base, "phyllo.toml")
+    row("none", 0, timeline, events)
+    doubt = review_sessions(phyllo, cfg, len(timeline))
+    wrong = {(r["plant"], r["session_start"]) for r in timeline
+             if math.floor(float(r["fused"]) - truth_by[(r["plant"], r["session_start"][:10])] + 0.5) != 0}
+    listed_wrong = sum(d in wrong for d in doubt)
+    rest = len(timeline) - len(doubt)
+    header = (f"`phyllo review`, {rule}: {len(doubt)} of {len(timeline)} sessions in doubt; fused count wrong on "
+              f"{100 * listed_wrong / max(len(doubt), 1):.0f} % of them, on {100 * (len(wrong) - listed_wrong) / max(rest, 1):.0f} % "
+              "of the rest. A person's count (the true living leaves) for the first k listed, or for k at random (3 draws, each shown):")
+    for frac in (0.05, 0.10):
+        k = round(frac * len(timeline))
+        tl, ev = corrected_run(phyllo, obs, rule, os.path.join(scratch, f"review-{k}"), truth_by,
+                               lambda c, _t, k=k: review_sessions(phyllo, c, k))
+        row(f"{frac:.0%} listed by `phyllo review`", k, tl, ev)
+        for seed in (1, 2, 3):
+            def at_random(_cfg, t, k=k, seed=seed):
+                return random.Random(seed).sample([(r["plant"], r["session_start"]) for r in t], k)
+            tl, ev = corrected_run(phyllo, obs, rule, os.path.join(scratch, f"random-{k}-{seed}"), truth_by, at_random)
+            row(f"{frac:.0%} at random (draw {seed})", k, tl, ev)
+    return [header, "| people's counts for | sessions | fused exact % | leaves emerged exact % | date MAE (d) | phyllochron MAE (d) |",
+            "|---|---:|---:|---:|---:|---:|"] + lines
 
 
 # Synthetic plant ids are SYN-<preset>-<n>: the preset plays the genotype.
@@ -256,6 +323,8 @@ def main():
     ap.add_argument("--keep", metavar="DIR",
                     help="keep each run's store in DIR/<n>/ (n counts the rules, then the truth run), "
                          "e.g. for `phyllo timeline -c DIR/0/phyllo.toml PLANT --plot OUT.png`")
+    ap.add_argument("--review", action="store_true",
+                    help="also measure what a person's counts on the days `phyllo review` lists are worth")
     a = ap.parse_args()
     truth = read_csv(os.path.join(a.sequence, "truth.csv"))
     obs = observations(a.counts)
@@ -313,6 +382,9 @@ def main():
     print("| genotype | plants | leaves emerged: phyllo / truth | phyllochron (d/leaf): phyllo / truth |")
     print("|---|---:|---|---|")
     print("\n".join(genotypes))
+    if a.review:
+        with tempfile.TemporaryDirectory() as scratch:
+            print("\n".join(review_table(a.phyllo, obs, a.rules[0], truth, scratch)))
     print(f"fused count by plant age, {a.rules[0]}:")
     for band, errs in by_age:
         print(f"  {band}: {count_summary(errs)} ({len(errs)} plant-days)")
