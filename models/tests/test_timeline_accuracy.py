@@ -108,3 +108,32 @@ def test_true_genotypes_group_plants_by_preset():
     assert got["btx623"] == (2, 3.0, pytest.approx(2.0), 1)
     assert got["maize"][:2] == (1, 3.0)
     assert ta.genotype_of("SYN-maize-002") == "maize" and ta.genotype_of("402-348-N276-WW-1") is None
+
+
+def test_review_table_counts_the_listed_days_against_random_ones(tmp_path):
+    phyllo = Path(__file__).resolve().parents[2] / "target" / "debug" / "phyllo"
+    if not phyllo.exists():
+        pytest.skip(f"{phyllo} not built (scripts/test.sh builds it before these tests)")
+    # Two plants, 10 days, one leaf every 3 days; five side views, one of which
+    # is off by one on some days, and plant B's day 4 reads two too many.
+    truth, obs = [], []
+    for plant in ("A", "B"):
+        dates = [f"2018-04-{d:02d}" for d in (1, 2, 3, 6, 9)]
+        for d in range(10, 20):
+            living = 3 + (d - 10) // 3
+            date = f"2018-04-{d}"
+            truth.append(truth_row(plant, date, living, living, [x for x in dates + ["2018-04-12", "2018-04-15", "2018-04-18"]
+                                                                  if x <= date][:living]))
+            for v in range(5):
+                c = living + (1 if (v == 4 and d % 2) else 0) + (2 if (plant == "B" and d == 14 and v < 3) else 0)
+                obs.append((plant, f"{date}T08:00:0{v}", f"SV_{v * 72}", c))
+    lines = ta.review_table(str(phyllo), obs, "second-max-side", truth, str(tmp_path))
+    assert lines[0].startswith("`phyllo review`, second-max-side: ") and "of 20 sessions in doubt" in lines[0]
+    rows = [line.split(" | ") for line in lines[3:]]
+    assert [r[0].lstrip("| ") for r in rows] == ["none"] + [
+        label for frac in ("5%", "10%")
+        for label in [f"{frac} listed by `phyllo review`"] + [f"{frac} at random (draw {i})" for i in (1, 2, 3)]]
+    none, listed = rows[0], rows[1]
+    assert none[1] == "0" and listed[1] == "1"
+    # B's day 4 is listed first; a person's true count there fixes it.
+    assert float(listed[2]) > float(none[2])
