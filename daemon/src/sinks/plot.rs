@@ -26,8 +26,8 @@ pub fn register_font() {
 }
 
 /// Draws the timeline: per-view counts (grey; top views hollow; people's
-/// counts black crosses), fused counts
-/// (blue), leaves emerged (red steps), living leaves (green), emergence events
+/// counts black crosses), fused counts (blue; ringed orange where the
+/// session is in doubt, [`crate::review`]), leaves emerged (red steps), living leaves (green), emergence events
 /// (red ticks numbered with the leaf), and leaves read as lost (brown steps)
 /// once a plant has lost one.
 /// The x axis is days since the first session.
@@ -108,6 +108,26 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
         .map_err(err)?
         .label("fused")
         .legend(|(x, y)| Circle::new((x + 10, y), 5, BLUE.filled()));
+    // Rings round the sessions `phyllo review` lists, so a reader knows which
+    // days the timeline is least sure of.
+    let doubtful: std::collections::BTreeSet<String> = crate::review::rank(std::slice::from_ref(t), None)
+        .into_iter()
+        .map(|d| d.start)
+        .collect();
+    if !doubtful.is_empty() {
+        let orange = RGBColor(230, 120, 0);
+        chart
+            .draw_series(
+                t.sessions
+                    .iter()
+                    .zip(&xs)
+                    .filter(|(s, _)| doubtful.contains(&s.start))
+                    .map(|(s, &x)| Circle::new((x, s.fused), 9, orange.stroke_width(2))),
+            )
+            .map_err(err)?
+            .label("in doubt (phyllo review)")
+            .legend(move |(x, y)| Circle::new((x + 10, y), 7, orange.stroke_width(2)));
+    }
     // Over the fused dot it sets, so the correction shows.
     if !people.is_empty() {
         chart
