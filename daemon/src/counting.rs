@@ -30,9 +30,9 @@ pub trait LeafCounter: Send + Sync {
     }
 }
 
-/// Builds the production counter (ONNX Runtime) from `[inference]`.
-pub fn onnx_counter(cfg: &crate::config::InferenceConfig) -> anyhow::Result<std::sync::Arc<dyn LeafCounter>> {
-    let counter = phyllo_inference::Counter::new(phyllo_inference::CounterConfig {
+/// The inference core's settings from `[inference]`.
+pub fn counter_config(cfg: &crate::config::InferenceConfig) -> phyllo_inference::CounterConfig {
+    phyllo_inference::CounterConfig {
         model: cfg.model.clone(),
         ort_lib: cfg.ort_lib.clone(),
         intra_threads: cfg.intra_threads,
@@ -40,7 +40,12 @@ pub fn onnx_counter(cfg: &crate::config::InferenceConfig) -> anyhow::Result<std:
         zoom_plant_height: cfg.zoom_plant_height,
         flip: cfg.flip,
         ..phyllo_inference::CounterConfig::default()
-    })?;
+    }
+}
+
+/// Builds the production counter (ONNX Runtime) from `[inference]`.
+pub fn onnx_counter(cfg: &crate::config::InferenceConfig) -> anyhow::Result<std::sync::Arc<dyn LeafCounter>> {
+    let counter = phyllo_inference::Counter::new(counter_config(cfg))?;
     Ok(std::sync::Arc::new(counter))
 }
 

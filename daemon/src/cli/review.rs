@@ -1,6 +1,8 @@
-//! `phyllo review --config FILE [--top N] [--since DATE] [--plant P] [--csv SHEET.csv] [--json]`.
+//! `phyllo review --config FILE [--top N] [--since DATE] [--plant P] [--csv SHEET.csv] [--overlays DIR] [--json]`.
 
 use std::path::PathBuf;
+
+use anyhow::Context;
 
 use super::ConfigArg;
 use crate::review::{rank, NIGHTLY};
@@ -24,6 +26,10 @@ pub struct Args {
     /// Also write them as a sheet to fill in and hand to `phyllo import`.
     #[arg(long, value_name = "SHEET.csv")]
     csv: Option<PathBuf>,
+    /// Also count each listed session's images again with the configured
+    /// model and draw what it found into DIR, one overlay PNG per image.
+    #[arg(long, value_name = "DIR")]
+    overlays: Option<PathBuf>,
     /// Print JSON (each session with its views, fit and images) instead of the table.
     #[arg(long)]
     json: bool,
@@ -54,6 +60,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             out.display()
         );
     }
+    if let Some(dir) = &args.overlays {
+        let (drawn, missing) = draw_overlays(&config, &items, dir)?;
+        eprintln!(
+            "{drawn} overlays → {}{}",
+            dir.display(),
+            if missing > 0 {
+                format!(" ({missing} images no longer in the drop directory)")
+            } else {
+                String::new()
+            }
+        );
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&items)?);
         return Ok(());
@@ -76,4 +94,54 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Counts every image of `items` again and draws its overlay into
+/// `dir/<rank>-<plant>/`; returns (overlays drawn, images missing).
+fn draw_overlays(
+    config: &crate::config::Config,
+    items: &[review_sheet::Item],
+    dir: &std::path::Path,
+) -> anyhow::Result<(usize, usize)> {
+    let counter = phyllo_inference::Counter::new(crate::counting::counter_config(&config.inference))?;
+    let (mut drawn, mut missing) = (0, 0);
+    for (i, it) in items.iter().enumerate() {
+        let out_dir = dir.join(format!("{:02}-{}", i + 1, sanitize(&it.doubt.plant)));
+        std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+        for rel in &it.images {
+            let path = config.drop_dir.join(rel);
+            let bytes = match std::fs::read(&path) {
+                Ok(b) => b,
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                    missing += 1;
+                    continue;
+                }
+                Err(e) => return Err(e).with_context(|| format!("reading {}", path.display())),
+            };
+            let analysis = counter.analyse_bytes(&path, &bytes)?;
+            let picture = super::count::render_overlay(&counter, &path, &bytes, &analysis)?;
+            // Facility layouts reuse file names across folders (`0_0_0.png`),
+            // so the whole relative path names the overlay.
+            let stem = std::path::Path::new(rel).with_extension("");
+            let out = out_dir.join(format!("{}.overlay.png", sanitize(&stem.to_string_lossy())));
+            picture
+                .save(&out)
+                .with_context(|| format!("writing {}", out.display()))?;
+            drawn += 1;
+        }
+    }
+    Ok((drawn, missing))
+}
+
+/// A path component from `s`: separators and other awkward characters become `_`.
+fn sanitize(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
 }
