@@ -222,6 +222,42 @@ def genotype_table(phyllo, cfg, truth):
     return lines
 
 
+def true_plant_values(truth):
+    """Per plant, from the generator's truth: (true phyllochron or None, leaves emerged on its last day)."""
+    out = {}
+    for plant in sorted({t["plant"] for t in truth}):
+        rows = [t for t in truth if t["plant"] == plant]
+        first, dates = rows[0]["date"], [d for d in rows[-1]["emergence_dates"].split(";") if d]
+        out[plant] = (phyllochron([(k + 1, d) for k, d in enumerate(dates) if d > first]), int(rows[-1]["leaves_emerged"]))
+    return out
+
+
+def genotype_pairs(phyllo, cfg, truth):
+    """`phyllo groups --compare` (Welch, Holm) on a store against the same plants' true difference
+    of means, one line per pair, then whether each true difference lies in phyllo's 95 % interval."""
+    got = json.loads(subprocess.run([phyllo, "groups", "-c", cfg, "--json", "--compare"], check=True,
+                                    capture_output=True, text=True).stdout)
+    values = true_plant_values(truth)
+    mean = lambda xs: sum(xs) / len(xs) if xs else float("nan")
+
+    def true_mean(genotype, measure):
+        col = 0 if measure == "phyllochron_days" else 1
+        return mean([v[col] for p, v in values.items() if genotype_of(p) == genotype and v[col] is not None])
+
+    lines, inside = [], {}
+    for c in got["pairs"]:
+        a, b = c["a"][0], c["b"][0]
+        want = true_mean(a, c["measure"]) - true_mean(b, c["measure"])
+        lo, hi = c["ci95"]
+        hit = lo <= want <= hi
+        inside.setdefault(c["measure"], []).append(hit)
+        lines.append(f"| {c['measure']} | {a} − {b} | {c['difference']:+.2f} ({lo:+.2f} to {hi:+.2f}) | "
+                     f"{c['p_holm']:.3f} | {want:+.2f} | {'yes' if hit else 'no'} |")
+    for measure, hits in inside.items():
+        lines.append(f"{measure}: the true difference lies in phyllo's 95 % interval for {sum(hits)} of {len(hits)} pairs")
+    return lines
+
+
 def days_from_mid(day, when):
     """Days from the middle of `day` (truth.csv dates an emergence to the day) to timestamp `when`."""
     a = dt.datetime.fromisoformat(day) + dt.timedelta(hours=12)
@@ -355,6 +391,7 @@ def main():
             if i == 0:
                 by_age = age_bands(truth, timeline)
                 genotypes = genotype_table(a.phyllo, os.path.join(tmp, "0", "phyllo.toml"), truth)
+                pairs = genotype_pairs(a.phyllo, os.path.join(tmp, "0", "phyllo.toml"), truth)
                 first_lost = lost_by_last_day(timeline, lambda r: float(r.get("leaves_lost") or 0))
             if source == "model":
                 per_plant.append(plant_squared_errors(truth, timeline))
@@ -382,6 +419,11 @@ def main():
     print("| genotype | plants | leaves emerged: phyllo / truth | phyllochron (d/leaf): phyllo / truth |")
     print("|---|---:|---|---|")
     print("\n".join(genotypes))
+    print(f"genotype pairs (`phyllo groups --compare`: Welch's t-test over the plants, Holm-adjusted), {a.rules[0]},")
+    print("against the difference of the same plants' true means:")
+    print("| measure | pair | phyllo: difference (95 % CI) | p (Holm) | truth: difference | truth in the CI |")
+    print("|---|---|---|---:|---:|---|")
+    print("\n".join(pairs))
     if a.review:
         with tempfile.TemporaryDirectory() as scratch:
             print("\n".join(review_table(a.phyllo, obs, a.rules[0], truth, scratch)))

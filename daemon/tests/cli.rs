@@ -497,3 +497,59 @@ fn review_lists_the_days_in_doubt_and_the_filled_sheet_settles_them() {
     let page = std::fs::read_to_string(d.join("state/exports/index.html")).unwrap();
     assert!(page.contains("<h2>Days to check</h2>"), "{page}");
 }
+
+/// `phyllo groups --compare`: every two groups tested against each other
+/// (Welch), on the terminal, in JSON and as `group_pairs.csv`.
+#[test]
+fn groups_compare_tests_every_two_groups() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (cfg, _) = site_config(d, "[groups]\npattern = '^(?P<genotype>[A-Z]+)-\\d+$'\n");
+    let cfg = cfg.as_str();
+    let mut obs = String::from("plant,timestamp,view,leaf_count\n");
+    // A leaf every 2, 2 and 3 days in F, every 4, 4 and 5 in S.
+    for (p, every) in [
+        ("F-1", 2),
+        ("F-2", 2),
+        ("F-3", 3),
+        ("S-1", 4),
+        ("S-2", 4),
+        ("S-3", 5),
+    ] {
+        for day in 0..21 {
+            for a in [0, 72, 144] {
+                obs += &format!(
+                    "{p},2026-11-{:02}T10:00:{:02},SV_{a},{}\n",
+                    1 + day,
+                    a / 72,
+                    4 + day / every
+                );
+            }
+        }
+    }
+    std::fs::write(d.join("obs.csv"), obs).unwrap();
+    ok(&["import", "-c", cfg, d.join("obs.csv").to_str().unwrap()]);
+    let rep: serde_json::Value =
+        serde_json::from_str(&ok(&["groups", "-c", cfg, "--compare", "--json"])).unwrap();
+    let pairs = rep["pairs"].as_array().unwrap();
+    assert_eq!(pairs.len(), 2, "{pairs:?}");
+    let ph = &pairs[0];
+    assert_eq!(
+        (ph["measure"].as_str(), ph["a"][0].as_str(), ph["b"][0].as_str()),
+        (Some("phyllochron_days"), Some("F"), Some("S"))
+    );
+    // F averages 2.33 days per leaf, S 4.33: two days apart, well outside chance.
+    let diff = ph["difference"].as_f64().unwrap();
+    assert!((diff + 2.0).abs() < 0.3, "{ph}");
+    let (lo, hi) = (ph["ci95"][0].as_f64().unwrap(), ph["ci95"][1].as_f64().unwrap());
+    assert!(lo < diff && diff < hi && hi < 0.0, "{ph}");
+    assert!(ph["p"].as_f64().unwrap() < 0.05, "{ph}");
+    assert_eq!(pairs[1]["measure"], "leaves_emerged");
+    let table = ok(&["groups", "-c", cfg, "--compare"]);
+    assert!(table.contains("phyllochron_days\tF − S\t3 / 3\t-2."), "{table}");
+    let csv_dir = d.join("csv");
+    ok(&["groups", "-c", cfg, "--csv", csv_dir.to_str().unwrap()]);
+    let written = std::fs::read_to_string(csv_dir.join("group_pairs.csv")).unwrap();
+    assert!(written.starts_with("measure,genotype_a,genotype_b,plants_a,plants_b,mean_a,mean_b,difference,ci95_low,ci95_high,t,df,p,p_holm\r\n"), "{written}");
+    assert_eq!(written.lines().count(), 3, "{written}");
+}

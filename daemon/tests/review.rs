@@ -56,7 +56,10 @@ fn a_session_in_doubt_lists_its_images_and_draws_their_overlays() {
         .map(|v| v.as_str().unwrap().to_string())
         .collect();
     let want: Vec<String> = (0..5).map(|v| flat_name("R00", 3, v * 7, v * 36)).collect();
-    assert_eq!(images, want, "the session's own images, in time order, the gone one too");
+    assert_eq!(
+        images, want,
+        "the session's own images, in time order, the gone one too"
+    );
     assert!(
         err.contains("4 overlays → ") && err.contains("(1 images no longer in the drop directory)"),
         "{err}"

@@ -90,8 +90,12 @@ fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Resul
             "groups: {n} rows, group_days: {d} rows ({} plants match no pattern)",
             rep.unmatched.len()
         );
+        let pairs = crate::group_compare::compare(&rule, &timelines);
+        let c = group_report::write_pairs(&rule, &pairs, &dir.join("group_pairs.csv"))?;
+        println!("group_pairs: {c} rows");
         index.tables.push(("groups.csv".into(), n));
         index.tables.push(("group_days.csv".into(), d));
+        index.tables.push(("group_pairs.csv".into(), c));
         if config.export.plots && !rep.days.is_empty() {
             group_report::plot(&rep, &dir.join("groups.png"))?;
             index.groups_plot = Some("groups.png".into());

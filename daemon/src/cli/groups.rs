@@ -1,4 +1,4 @@
-//! `phyllo groups --config FILE [--csv DIR] [--plot OUT.png] [--json]`.
+//! `phyllo groups --config FILE [--compare] [--csv DIR] [--plot OUT.png] [--json]`.
 
 use std::path::PathBuf;
 
@@ -20,6 +20,10 @@ pub struct Args {
     /// Also draw each group's leaves emerged per day into this PNG.
     #[arg(long, value_name = "OUT.png")]
     plot: Option<PathBuf>,
+    /// Also test every two groups against each other (Welch's t-test on
+    /// phyllochron and on leaves emerged, p-values Holm-adjusted).
+    #[arg(long)]
+    compare: bool,
     /// Print JSON (every group and day) instead of the table.
     #[arg(long)]
     json: bool,
@@ -39,12 +43,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     };
     let store = Store::open_read_only(&config.database)?;
-    let rep = crate::groups::summarise(&rule, &store.plant_timelines()?);
+    let timelines = store.plant_timelines()?;
+    let rep = crate::groups::summarise(&rule, &timelines);
+    let pairs = if args.compare || args.csv.is_some() {
+        crate::group_compare::compare(&rule, &timelines)
+    } else {
+        Vec::new()
+    };
     if let Some(dir) = &args.csv {
         let n = group_report::write_groups(&rule, &rep, &dir.join("groups.csv"))?;
         let d = group_report::write_days(&rule, &rep, &dir.join("group_days.csv"))?;
+        let c = group_report::write_pairs(&rule, &pairs, &dir.join("group_pairs.csv"))?;
         eprintln!(
-            "groups.csv: {n} rows, group_days.csv: {d} rows → {}",
+            "groups.csv: {n} rows, group_days.csv: {d} rows, group_pairs.csv: {c} rows → {}",
             dir.display()
         );
     }
@@ -67,7 +78,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&rep)?);
+        let mut value = serde_json::to_value(&rep)?;
+        if args.compare {
+            value["pairs"] = serde_json::to_value(&pairs)?;
+        }
+        println!("{}", serde_json::to_string_pretty(&value)?);
         return Ok(());
     }
     println!(
@@ -86,6 +101,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             g.phyllochron_days.map_or(0, |s| s.n),
             g.last_session.get(..16).unwrap_or(&g.last_session)
         );
+    }
+    if args.compare {
+        println!("\nmeasure\tgroups\tplants\tdifference (95 % CI)\tp\tp (Holm)");
+        for c in &pairs {
+            println!(
+                "{}\t{} − {}\t{} / {}\t{:+.2} ({:+.2} to {:+.2})\t{:.3}\t{:.3}{}",
+                c.measure,
+                c.a.join("/"),
+                c.b.join("/"),
+                c.n_a,
+                c.n_b,
+                c.difference,
+                c.ci95.0,
+                c.ci95.1,
+                c.p,
+                c.p_holm,
+                if c.p_holm < 0.05 { "\t*" } else { "" }
+            );
+        }
     }
     Ok(())
 }

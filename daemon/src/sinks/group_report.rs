@@ -1,6 +1,7 @@
 //! Group summaries out: `groups.csv` (one row per group), `group_days.csv`
-//! (one row per group and day) and `groups.png` (each group's mean leaves
-//! emerged per day, ± one SD), each written beside and renamed into place.
+//! (one row per group and day), `group_pairs.csv` (every two groups tested
+//! against each other) and `groups.png` (each group's mean leaves emerged
+//! per day, ± one SD), each written beside and renamed into place.
 
 use std::path::Path;
 
@@ -9,6 +10,7 @@ use chrono::NaiveDate;
 use plotters::prelude::*;
 
 use super::export::{format_real, write_csv};
+use crate::group_compare::Comparison;
 use crate::groups::{GroupReport, GroupRule, Spread};
 
 fn mean(s: Option<Spread>) -> String {
@@ -64,7 +66,11 @@ pub fn group_table(rule: &GroupRule, rep: &GroupReport) -> (Vec<String>, Vec<Vec
 
 /// Writes `groups.csv`. Returns the number of rows.
 pub fn write_groups(rule: &GroupRule, rep: &GroupReport, out: &Path) -> anyhow::Result<usize> {
-    let (head, rows) = group_table(rule, rep);
+    write_table(out, group_table(rule, rep))
+}
+
+/// Writes a header and rows as CSV; returns the number of rows.
+fn write_table(out: &Path, (head, rows): (Vec<String>, Vec<Vec<String>>)) -> anyhow::Result<usize> {
     write_csv(out, |w| {
         w.write_record(&head)?;
         for r in &rows {
@@ -72,6 +78,56 @@ pub fn write_groups(rule: &GroupRule, rep: &GroupReport, out: &Path) -> anyhow::
         }
         Ok(rows.len())
     })
+}
+
+/// The `group_pairs.csv` table: per measure and pair of groups, the Welch
+/// test ([`crate::group_compare`]); a group's columns are joined by `/`.
+pub fn pairs_table(rule: &GroupRule, pairs: &[Comparison]) -> (Vec<String>, Vec<Vec<String>>) {
+    let by = rule.columns().join("/");
+    let head = [
+        "measure".to_string(),
+        format!("{by}_a"),
+        format!("{by}_b"),
+        "plants_a".into(),
+        "plants_b".into(),
+        "mean_a".into(),
+        "mean_b".into(),
+        "difference".into(),
+        "ci95_low".into(),
+        "ci95_high".into(),
+        "t".into(),
+        "df".into(),
+        "p".into(),
+        "p_holm".into(),
+    ]
+    .to_vec();
+    let rows = pairs
+        .iter()
+        .map(|c| {
+            vec![
+                c.measure.to_string(),
+                c.a.join("/"),
+                c.b.join("/"),
+                c.n_a.to_string(),
+                c.n_b.to_string(),
+                format_real(c.mean_a),
+                format_real(c.mean_b),
+                format_real(c.difference),
+                format_real(c.ci95.0),
+                format_real(c.ci95.1),
+                format_real(c.t),
+                format_real(c.df),
+                format!("{:.3e}", c.p),
+                format!("{:.3e}", c.p_holm),
+            ]
+        })
+        .collect();
+    (head, rows)
+}
+
+/// Writes `group_pairs.csv`. Returns the number of rows.
+pub fn write_pairs(rule: &GroupRule, pairs: &[Comparison], out: &Path) -> anyhow::Result<usize> {
+    write_table(out, pairs_table(rule, pairs))
 }
 
 /// Writes `group_days.csv`. Returns the number of rows.
