@@ -137,3 +137,28 @@ def test_review_table_counts_the_listed_days_against_random_ones(tmp_path):
     assert none[1] == "0" and listed[1] == "1"
     # B's day 4 is listed first; a person's true count there fixes it.
     assert float(listed[2]) > float(none[2])
+
+
+def test_genotype_pairs_set_phyllos_difference_beside_the_truth(tmp_path):
+    phyllo = Path(__file__).resolve().parents[2] / "target" / "debug" / "phyllo"
+    if not phyllo.exists():
+        pytest.skip(f"{phyllo} not built (scripts/test.sh builds it before these tests)")
+    # Genotype "fast" grows a leaf every 2 days, "slow" every 4 (one plant a day off each).
+    truth, obs = [], []
+    for plant, every in (("SYN-fast-000", 2), ("SYN-fast-001", 2), ("SYN-fast-002", 3),
+                         ("SYN-slow-003", 4), ("SYN-slow-004", 4), ("SYN-slow-005", 5)):
+        for d in range(21):
+            date = f"2018-04-{d + 1:02d}"
+            living = 3 + d // every
+            dates = [f"2018-03-2{k}" for k in range(3)] + [f"2018-04-{1 + k * every:02d}" for k in range(1, living - 2)]
+            truth.append(truth_row(plant, date, living, living, dates))
+            obs += [(plant, f"{date}T08:00:0{v}", f"SV_{v * 72}", living) for v in range(3)]
+    work = tmp_path / "store"
+    ta.run_timeline(str(phyllo), obs, "second-max-side", str(work))
+    lines = ta.genotype_pairs(str(phyllo), str(work / "phyllo.toml"), truth)
+    ph = next(line for line in lines if line.startswith("| phyllochron_days | fast − slow |"))
+    cells = [c.strip() for c in ph.strip("|").split("|")]
+    assert float(cells[2].split()[0]) == pytest.approx(-2.0, abs=0.4)
+    assert float(cells[4]) == pytest.approx(-2.0, abs=0.4)
+    assert cells[5] == "yes"
+    assert lines[-2].startswith("phyllochron_days: the true difference lies in phyllo's 95 % interval for 1 of 1")
