@@ -454,6 +454,8 @@ fn review_lists_the_days_in_doubt_and_the_filled_sheet_settles_them() {
         out.contains("P2\t2026-11-04T10:00:00.000\t3 of 5 side views differ"),
         "{out}"
     );
+    let status: serde_json::Value = serde_json::from_str(&ok(&["status", "-c", cfg, "--json"])).unwrap();
+    assert_eq!(status["sessions_in_doubt"], listed.len());
     let json: serde_json::Value =
         serde_json::from_str(&ok(&["review", "-c", cfg, "--json", "--top", "1"])).unwrap();
     assert_eq!(json.as_array().unwrap().len(), 1);

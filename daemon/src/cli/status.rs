@@ -203,6 +203,7 @@ fn show(args: Args) -> anyhow::Result<()> {
     let backup_age_hours = newest.as_ref().map(|s| s.age_hours());
     let state_dir = config.state_dir();
     let free = crate::disk::free_bytes(&state_dir).ok();
+    let in_doubt = crate::review::rank(&store.plant_timelines()?, None).len();
     let get = |k: &str| svc.get(k).cloned().unwrap_or_else(|| "-".into());
     let state = service_state(&svc);
     if args.json {
@@ -211,6 +212,7 @@ fn show(args: Args) -> anyhow::Result<()> {
             "service": svc,
             "images": counts,
             "timeline": timeline,
+            "sessions_in_doubt": in_doubt,
             "last_image": last,
             "recent_failures": failures,
             "counts_with_other_settings": other_settings,
@@ -251,6 +253,9 @@ fn show(args: Args) -> anyhow::Result<()> {
         timeline.plants_with_lost_leaves,
         timeline.settings.as_deref().unwrap_or("-")
     );
+    if in_doubt > 0 {
+        println!("review:    {in_doubt} plant sessions in doubt: `phyllo review` lists the most doubtful to count by hand");
+    }
     match other_settings {
         Some(0) => println!("settings:  every count made with the service's settings"),
         Some(n) => println!(
