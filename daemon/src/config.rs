@@ -182,6 +182,10 @@ pub struct TimelineConfig {
     /// showing a one-leaf drop must outnumber those that do not by more than
     /// this, summed over sessions; 0 reads no deaths.
     pub death_penalty: f64,
+    /// Base temperature (°C) of the thermal phyllochron, in degree-days per
+    /// leaf above it, once `phyllo import` has a temperature log: about 10
+    /// for sorghum, 8 to 10 for maize.
+    pub base_temp_c: f64,
 }
 
 impl Default for TimelineConfig {
@@ -191,6 +195,7 @@ impl Default for TimelineConfig {
             session_gap_minutes: 120.0,
             living_window: 3,
             death_penalty: 2.5,
+            base_temp_c: 10.0,
         }
     }
 }
@@ -327,6 +332,9 @@ impl Config {
         if !(self.timeline.death_penalty >= 0.0 && self.timeline.death_penalty.is_finite()) {
             bail!("timeline.death_penalty must be 0 (read no deaths) or a positive number");
         }
+        if !(-10.0..=40.0).contains(&self.timeline.base_temp_c) {
+            bail!("timeline.base_temp_c must be a base temperature in °C, between -10 and 40");
+        }
         if self.timeline.session_gap_minutes <= 0.0 {
             bail!("timeline.session_gap_minutes must be positive");
         }
@@ -460,6 +468,7 @@ mod tests {
             "session_gap_minutes",
             "living_window",
             "death_penalty",
+            "base_temp_c",
             "[export]",
             "dir",
             "plots",

@@ -1,6 +1,7 @@
 //! Are two groups different? Pairwise Welch t-tests between every two groups
 //! on what [`crate::groups`] summarises per plant: phyllochron (days per
-//! leaf) and leaves emerged at each plant's latest session.
+//! leaf, and degree-days per leaf with a temperature log) and leaves emerged
+//! at each plant's latest session.
 //!
 //! Welch's test does not assume equal variances, which genotypes seldom
 //! have. With many groups, many pairs are tested, so each p-value is also
@@ -19,7 +20,7 @@ use crate::groups::GroupRule;
 use crate::store::PlantTimeline;
 
 /// The measures compared, as named in the CSV.
-pub const MEASURES: [&str; 2] = ["phyllochron_days", "leaves_emerged"];
+pub const MEASURES: [&str; 3] = ["phyllochron_days", "phyllochron_cd", "leaves_emerged"];
 
 /// One pair of groups on one measure.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -56,20 +57,19 @@ pub struct Comparison {
 /// some spread, per measure; measures in [`MEASURES`] order, pairs in group
 /// order.
 pub fn compare(rule: &GroupRule, plants: &[PlantTimeline]) -> Vec<Comparison> {
-    let mut values: BTreeMap<Vec<String>, [Vec<f64>; 2]> = BTreeMap::new();
+    let mut values: BTreeMap<Vec<String>, [Vec<f64>; 3]> = BTreeMap::new();
     for p in plants {
         let Some(group) = rule.group_of(&p.plant) else {
             continue;
         };
         let v = values.entry(group).or_default();
-        if let Some(ph) = p.phyllochron_days {
-            v[0].push(ph);
-        }
+        v[0].extend(p.phyllochron_days);
+        v[1].extend(p.phyllochron_cd);
         if let Some(last) = p.sessions.last() {
-            v[1].push(last.leaves_emerged);
+            v[2].push(last.leaves_emerged);
         }
     }
-    let groups: Vec<(&Vec<String>, &[Vec<f64>; 2])> = values.iter().collect();
+    let groups: Vec<(&Vec<String>, &[Vec<f64>; 3])> = values.iter().collect();
     let mut out = Vec::new();
     for (m, measure) in MEASURES.iter().enumerate() {
         let first = out.len();
@@ -150,6 +150,7 @@ mod tests {
         PlantTimeline {
             plant: name.into(),
             phyllochron_days: Some(phyllochron),
+            phyllochron_cd: None,
             sessions: vec![SessionRow {
                 start: "2026-11-01T08:00:00.000".into(),
                 views: BTreeMap::new(),

@@ -110,6 +110,9 @@ pub struct GroupSummary {
     pub leaves_lost: Option<Spread>,
     /// Days per leaf, over the plants that have one.
     pub phyllochron_days: Option<Spread>,
+    /// Degree-days per leaf, over the plants that have one (a temperature
+    /// log covering their leaves).
+    pub phyllochron_cd: Option<Spread>,
     /// First and last session of any of its plants (facility time).
     pub first_session: String,
     /// See `first_session`.
@@ -172,6 +175,12 @@ pub fn summarise(rule: &GroupRule, plants: &[PlantTimeline]) -> GroupReport {
                 &members
                     .iter()
                     .filter_map(|p| p.phyllochron_days)
+                    .collect::<Vec<_>>(),
+            ),
+            phyllochron_cd: Spread::of(
+                &members
+                    .iter()
+                    .filter_map(|p| p.phyllochron_cd)
                     .collect::<Vec<_>>(),
             ),
             first_session: starts.clone().min().unwrap_or_default().to_string(),
@@ -272,6 +281,7 @@ mod tests {
         PlantTimeline {
             plant: name.into(),
             phyllochron_days: phyllochron,
+            phyllochron_cd: phyllochron.map(|d| d * 12.0),
             sessions: sessions
                 .iter()
                 .map(|&(start, emerged, living)| SessionRow {

@@ -32,5 +32,6 @@ pub mod sinks;
 pub mod source;
 pub mod store;
 pub mod systemd;
+pub mod thermal;
 pub mod timeline;
 pub mod worker;

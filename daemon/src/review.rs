@@ -147,6 +147,7 @@ mod tests {
         PlantTimeline {
             plant: name.into(),
             phyllochron_days: None,
+            phyllochron_cd: None,
             sessions,
             events: Vec::new(),
         }

@@ -195,6 +195,8 @@ pub struct TimelineParams {
     pub living_window: usize,
     /// Cost of one lost leaf in [`deaths`]; 0 reads no deaths.
     pub death_penalty: f64,
+    /// Base temperature of the thermal phyllochron ([`crate::thermal`]).
+    pub base_temp_c: f64,
 }
 
 impl TimelineParams {
@@ -205,6 +207,7 @@ impl TimelineParams {
             session_gap: Duration::milliseconds((cfg.session_gap_minutes * 60_000.0) as i64),
             living_window: cfg.living_window,
             death_penalty: cfg.death_penalty,
+            base_temp_c: cfg.base_temp_c,
         })
     }
 }
@@ -507,11 +510,16 @@ fn phyllochron(events: &[Event]) -> Option<f64> {
         .iter()
         .map(|e| (e.at - t0).num_milliseconds() as f64 / 86_400_000.0)
         .collect();
+    slope(&xs, &ys)
+}
+
+/// The least-squares slope of `ys` on `xs`; `None` when the `xs` do not vary.
+pub(crate) fn slope(xs: &[f64], ys: &[f64]) -> Option<f64> {
     let n = xs.len() as f64;
     let (mx, my) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
-    let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
+    let sxy: f64 = xs.iter().zip(ys).map(|(x, y)| (x - mx) * (y - my)).sum();
     let sxx: f64 = xs.iter().map(|x| (x - mx) * (x - mx)).sum();
-    Some(sxy / sxx)
+    (sxx > 0.0).then(|| sxy / sxx)
 }
 
 #[cfg(test)]

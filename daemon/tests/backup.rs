@@ -268,6 +268,13 @@ fn a_restore_takes_the_later_imports_again_unless_told_not_to() {
         .path();
     let fix = csv("fix.csv", "P1,2026-11-03,human,8\n");
     let out = site.phyllo(&["import", fix.to_str().unwrap()]);
+    let temps = site.tmp.path().join("temps.csv");
+    std::fs::write(
+        &temps,
+        "timestamp,temp_c\n2026-11-01T00:00:00,21\n2026-11-01T01:00:00,22\n",
+    )
+    .unwrap();
+    assert!(site.phyllo(&["import", temps.to_str().unwrap()]).status.success());
     assert!(String::from_utf8_lossy(&out.stdout).contains("kept as "));
     let emerged = "SELECT leaves_emerged FROM plants WHERE name = 'P1'";
     assert_eq!(rows(&site.db, emerged), ["8.000000"]);
@@ -281,11 +288,18 @@ fn a_restore_takes_the_later_imports_again_unless_told_not_to() {
     );
     assert_eq!(rows(&site.db, emerged), ["6.000000"], "as in the snapshot");
 
+    assert_eq!(site.q("SELECT COUNT(*) FROM climate"), 0);
     let out = site.phyllo(&["restore", snap.to_str().unwrap()]);
     let printed = String::from_utf8_lossy(&out.stdout);
     assert!(
         printed.contains("fix.csv again (1 counts for 1 plants"),
         "{printed}"
+    );
+    assert!(printed.contains("temps.csv again (2 temperatures"), "{printed}");
+    assert_eq!(
+        site.q("SELECT COUNT(*) FROM climate"),
+        2,
+        "the temperature log is back too"
     );
     assert!(
         !printed.contains("model.csv"),

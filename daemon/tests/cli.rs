@@ -555,3 +555,113 @@ fn groups_compare_tests_every_two_groups() {
     assert!(written.starts_with("measure,genotype_a,genotype_b,plants_a,plants_b,mean_a,mean_b,difference,ci95_low,ci95_high,t,df,p,p_holm\r\n"), "{written}");
     assert_eq!(written.lines().count(), 3, "{written}");
 }
+
+/// `phyllo import` of a greenhouse temperature log (`timestamp,temp_c`):
+/// every plant's phyllochron also in degree-days per leaf, in the timeline,
+/// the plants export, the groups and their comparison; a bad reading is
+/// named by file and line, and nothing of that file is stored.
+#[test]
+fn a_temperature_log_gives_degree_days_per_leaf() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (cfg, _) = site_config(d, "[groups]\npattern = '^(?P<genotype>[A-Z]+)-\\d+$'\n");
+    let cfg = cfg.as_str();
+    let mut obs = String::from("plant,timestamp,view,leaf_count\n");
+    for (p, every) in [
+        ("F-1", 2),
+        ("F-2", 2),
+        ("F-3", 3),
+        ("S-1", 4),
+        ("S-2", 4),
+        ("S-3", 5),
+    ] {
+        for day in 0..21 {
+            for a in [0, 72, 144] {
+                obs += &format!(
+                    "{p},2026-11-{:02}T10:00:{:02},SV_{a},{}\n",
+                    1 + day,
+                    a / 72,
+                    4 + day / every
+                );
+            }
+        }
+    }
+    std::fs::write(d.join("obs.csv"), obs).unwrap();
+    ok(&["import", "-c", cfg, d.join("obs.csv").to_str().unwrap()]);
+
+    // 18 °C at night, 28 °C by day, every 30 minutes from 30 October on
+    // (13 °Cd a day above 10 °C, less where the steps are smoothed).
+    let start = chrono::NaiveDate::from_ymd_opt(2026, 10, 30)
+        .unwrap()
+        .and_hms_opt(0, 0, 0)
+        .unwrap();
+    let mut log = String::from("timestamp,temp_c,humidity\n");
+    for k in 0..(24 * 48) {
+        let t = start + chrono::Duration::minutes(30 * k);
+        let temp = if (6..18).contains(&chrono::Timelike::hour(&t)) {
+            28.0
+        } else {
+            18.0
+        };
+        log += &format!("{},{temp},60\n", t.format("%Y-%m-%dT%H:%M:%S"));
+    }
+    let bad = d.join("bad-log.csv");
+    std::fs::write(
+        &bad,
+        "timestamp,temp_c\n2026-11-01T00:00:00,21.5\n2026-11-01T00:30:00,215\n",
+    )
+    .unwrap();
+    let out = phyllo(&["import", "-c", cfg, bad.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("bad-log.csv:3") && err.contains("215"),
+        "{err}"
+    );
+    std::fs::write(d.join("log.csv"), log).unwrap();
+    let out = ok(&["import", "-c", cfg, d.join("log.csv").to_str().unwrap()]);
+    assert!(
+        out.contains("1152 temperatures (6 plants with a phyllochron in degree-days)"),
+        "{out}"
+    );
+
+    let t: serde_json::Value = serde_json::from_str(&ok(&["timeline", "-c", cfg, "F-1", "--json"])).unwrap();
+    let (days, cd) = (
+        t["phyllochron_days"].as_f64().unwrap(),
+        t["phyllochron_cd"].as_f64().unwrap(),
+    );
+    // Leaves every two days, each day 13 °Cd: about 26 °Cd a leaf.
+    assert!(
+        (days - 2.0).abs() < 0.1 && (cd - 26.0).abs() < 2.0,
+        "{days} d, {cd} °Cd"
+    );
+    assert!(ok(&["timeline", "-c", cfg, "F-1"]).contains(" degree-days per leaf"));
+    let plants = d.join("plants.csv");
+    ok(&[
+        "export",
+        "-c",
+        cfg,
+        "--what",
+        "plants",
+        "--out",
+        plants.to_str().unwrap(),
+    ]);
+    let text = std::fs::read_to_string(&plants).unwrap();
+    assert!(
+        text.lines()
+            .next()
+            .unwrap()
+            .contains(",phyllochron_days,phyllochron_cd,"),
+        "{text}"
+    );
+    let rep: serde_json::Value =
+        serde_json::from_str(&ok(&["groups", "-c", cfg, "--compare", "--json"])).unwrap();
+    let f = &rep["summaries"][0]["phyllochron_cd"];
+    assert_eq!(f["n"], 3, "{f}");
+    let thermal = rep["pairs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["measure"] == "phyllochron_cd")
+        .unwrap();
+    assert!(thermal["difference"].as_f64().unwrap() < -20.0, "{thermal}");
+}

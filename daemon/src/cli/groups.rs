@@ -21,7 +21,8 @@ pub struct Args {
     #[arg(long, value_name = "OUT.png")]
     plot: Option<PathBuf>,
     /// Also test every two groups against each other (Welch's t-test on
-    /// phyllochron and on leaves emerged, p-values Holm-adjusted).
+    /// phyllochron, in days and in degree-days, and on leaves emerged,
+    /// p-values Holm-adjusted).
     #[arg(long)]
     compare: bool,
     /// Print JSON (every group and day) instead of the table.
@@ -85,13 +86,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&value)?);
         return Ok(());
     }
+    // The thermal column only once a temperature log gives one.
+    let thermal = rep.summaries.iter().any(|g| g.phyllochron_cd.is_some());
     println!(
-        "{}\tplants\tleaves emerged\tliving\tleaves lost\tphyllochron (days/leaf, n)\tlast session",
-        rule.columns().join("\t")
+        "{}\tplants\tleaves emerged\tliving\tleaves lost\tphyllochron (days/leaf, n)\t{}last session",
+        rule.columns().join("\t"),
+        if thermal {
+            "phyllochron (°Cd/leaf, n)\t"
+        } else {
+            ""
+        }
     );
     for g in &rep.summaries {
+        let cd = if thermal {
+            format!(
+                "{} ({})\t",
+                cell(g.phyllochron_cd),
+                g.phyllochron_cd.map_or(0, |s| s.n)
+            )
+        } else {
+            String::new()
+        };
         println!(
-            "{}\t{}\t{}\t{}\t{}\t{} ({})\t{}",
+            "{}\t{}\t{}\t{}\t{}\t{} ({})\t{cd}{}",
             g.group.join("\t"),
             g.plants,
             cell(g.leaves_emerged),

@@ -1,5 +1,7 @@
 //! `phyllo import --config FILE OBS.csv`: counts made elsewhere (by people or
-//! another tool) become observations, fused and fitted like the model's.
+//! another tool) become observations, fused and fitted like the model's; a
+//! greenhouse temperature log gives every plant its phyllochron in
+//! degree-days ([`crate::thermal`]).
 
 use std::path::PathBuf;
 
@@ -17,24 +19,31 @@ pub struct Args {
     #[command(flatten)]
     config: ConfigArg,
     /// CSV with a header row and columns plant,timestamp,view,leaf_count
-    /// (other columns are ignored). Timestamps: ISO 8601 (`2018-04-20T10:32:16`,
+    /// (other columns are ignored), or a greenhouse temperature log with
+    /// columns timestamp,temp_c. Timestamps: ISO 8601 (`2018-04-20T10:32:16`,
     /// a space instead of `T`, or a date alone for noon), facility local time.
     #[arg(value_name = "OBS.csv")]
     file: PathBuf,
 }
 
 /// Runs `phyllo import`: the CSV is checked, kept in the import journal,
-/// then stored, with the journal entry recorded beside its counts.
+/// then stored, with the journal entry recorded beside its rows.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let _writing = WritersLock::shared(&config.database)?;
-    let skipped = read_rows(&args.file)?.skipped;
+    let skipped = match kind(&args.file)? {
+        Kind::Counts => read_rows(&args.file)?.skipped,
+        Kind::Climate => {
+            read_climate(&args.file)?;
+            0
+        }
+    };
     let journal = import_journal::dir(&config.state_dir());
     let kept = import_journal::keep(&journal, &args.file, chrono::Local::now().naive_local())?;
     let entry = kept.entry;
     let imported = Store::open(&config.database, &config.timeline, config.inference.max_attempts)
         .and_then(|mut store| take(&mut store, &entry));
-    let (n, plants) = match imported {
+    let done = match imported {
         Ok(done) => done,
         Err(e) => {
             if kept.copied {
@@ -44,7 +53,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     };
     println!(
-        "imported {n} counts for {plants} plants from {} (kept as {}){}",
+        "imported {done} from {} (kept as {}){}",
         args.file.display(),
         entry.file.display(),
         if skipped > 0 {
@@ -56,10 +65,88 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Imports one journal entry into `store`; returns (rows, plants).
-pub fn take(store: &mut Store, entry: &import_journal::Entry) -> anyhow::Result<(usize, usize)> {
-    let sheet = read_rows(&entry.file)?;
-    store.import(&entry.source(), &sheet.rows, Some(&entry.id))
+/// What an import CSV holds, told by its columns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Kind {
+    /// Leaf counts: `plant,timestamp,view,leaf_count`.
+    Counts,
+    /// Air temperatures: `timestamp,temp_c`.
+    Climate,
+}
+
+/// Reads the header of `path`: a `temp_c` column without a `leaf_count`
+/// makes a temperature log, anything else is read as counts.
+pub fn kind(path: &std::path::Path) -> anyhow::Result<Kind> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_path(path)
+        .with_context(|| format!("reading {}", path.display()))?;
+    let headers = rdr
+        .headers()
+        .with_context(|| format!("{}: header row", path.display()))?;
+    let has = |name: &str| headers.iter().any(|h| h.eq_ignore_ascii_case(name));
+    Ok(if has("temp_c") && !has("leaf_count") {
+        Kind::Climate
+    } else {
+        Kind::Counts
+    })
+}
+
+/// Imports one journal entry into `store`; says what it brought in.
+pub fn take(store: &mut Store, entry: &import_journal::Entry) -> anyhow::Result<String> {
+    match kind(&entry.file)? {
+        Kind::Counts => {
+            let sheet = read_rows(&entry.file)?;
+            let (n, plants) = store.import(&entry.source(), &sheet.rows, Some(&entry.id))?;
+            Ok(format!("{n} counts for {plants} plants"))
+        }
+        Kind::Climate => {
+            let readings = read_climate(&entry.file)?;
+            let with = store.import_climate(&entry.source(), &readings, Some(&entry.id))?;
+            Ok(format!(
+                "{} temperatures ({with} plants with a phyllochron in degree-days)",
+                readings.len()
+            ))
+        }
+    }
+}
+
+/// Reads and validates a temperature log (`timestamp,temp_c`, other columns
+/// ignored); errors name the file, line and problem.
+pub fn read_climate(path: &std::path::Path) -> anyhow::Result<Vec<(NaiveDateTime, f64)>> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_path(path)
+        .with_context(|| format!("reading {}", path.display()))?;
+    let headers = rdr.headers()?.clone();
+    let col = |name: &str| headers.iter().position(|h| h.eq_ignore_ascii_case(name));
+    let (Some(ct), Some(cc)) = (col("timestamp"), col("temp_c")) else {
+        bail!(
+            "{}: a temperature log needs timestamp,temp_c columns (have {:?})",
+            path.display(),
+            headers
+        );
+    };
+    let mut out = Vec::new();
+    for (i, rec) in rdr.records().enumerate() {
+        let line = i + 2;
+        let rec = rec.with_context(|| format!("{}:{line}", path.display()))?;
+        let ts = rec.get(ct).unwrap_or("");
+        let taken_at =
+            parse_timestamp(ts).with_context(|| format!("{}:{line}: timestamp '{ts}'", path.display()))?;
+        let c = rec.get(cc).unwrap_or("");
+        let temp: f64 = c
+            .parse()
+            .with_context(|| format!("{}:{line}: temp_c '{c}' is not a number", path.display()))?;
+        if !(-40.0..=60.0).contains(&temp) {
+            bail!(
+                "{}:{line}: temp_c {temp} is not a greenhouse air temperature (°C, -40 to 60)",
+                path.display()
+            );
+        }
+        out.push((taken_at, temp));
+    }
+    Ok(out)
 }
 
 /// Reads and validates the CSV; errors name the file, line and problem.

@@ -49,9 +49,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if args.no_reimport {
             println!("left out: {} (imported after the snapshot)", entry.file.display());
         } else {
-            let (n, plants) = super::import::take(&mut store, entry)?;
+            let done = super::import::take(&mut store, entry)?;
             println!(
-                "imported: {} again ({n} counts for {plants} plants, imported after the snapshot)",
+                "imported: {} again ({done}, imported after the snapshot)",
                 entry.file.display()
             );
         }

@@ -102,9 +102,12 @@ pub fn render(t: &PlantTimeline) -> String {
     for (leaf, at, seen) in &t.events {
         s += &format!("  leaf {leaf:>2} emerged about {at} (first counted {seen})\n");
     }
-    match t.phyllochron_days {
-        Some(p) => s += &format!("phyllochron: {p:.2} days per leaf\n"),
-        None => s += "phyllochron: n/a (fewer than two emergence events)\n",
+    match (t.phyllochron_days, t.phyllochron_cd) {
+        (Some(p), Some(cd)) => {
+            s += &format!("phyllochron: {p:.2} days per leaf, {cd:.1} degree-days per leaf\n")
+        }
+        (Some(p), None) => s += &format!("phyllochron: {p:.2} days per leaf\n"),
+        (None, _) => s += "phyllochron: n/a (fewer than two emergence events)\n",
     }
     s
 }

@@ -35,6 +35,9 @@ pub fn group_table(rule: &GroupRule, rep: &GroupReport) -> (Vec<String>, Vec<Vec
             "phyllochron_days_mean",
             "phyllochron_days_sd",
             "phyllochron_plants",
+            "phyllochron_cd_mean",
+            "phyllochron_cd_sd",
+            "phyllochron_cd_plants",
             "first_session",
             "last_session",
         ]
@@ -55,6 +58,9 @@ pub fn group_table(rule: &GroupRule, rep: &GroupReport) -> (Vec<String>, Vec<Vec
                 mean(g.phyllochron_days),
                 sd(g.phyllochron_days),
                 g.phyllochron_days.map_or(0, |s| s.n).to_string(),
+                mean(g.phyllochron_cd),
+                sd(g.phyllochron_cd),
+                g.phyllochron_cd.map_or(0, |s| s.n).to_string(),
                 g.first_session.clone(),
                 g.last_session.clone(),
             ]);

@@ -56,9 +56,11 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
     let root = BitMapBackend::new(out, (1000, 600)).into_drawing_area();
     let err = |e: DrawingAreaErrorKind<_>| anyhow!("drawing {}: {e:?}", out.display());
     root.fill(&WHITE).map_err(err)?;
-    let ph = t
-        .phyllochron_days
-        .map_or("n/a".into(), |p| format!("{p:.2} days/leaf"));
+    let ph = match (t.phyllochron_days, t.phyllochron_cd) {
+        (Some(p), Some(cd)) => format!("{p:.2} days/leaf, {cd:.1} °Cd/leaf"),
+        (Some(p), None) => format!("{p:.2} days/leaf"),
+        (None, _) => "n/a".into(),
+    };
     let mut chart = ChartBuilder::on(&root)
         .caption(format!("{} — phyllochron {ph}", t.plant), ("sans-serif", 24))
         .margin(15)

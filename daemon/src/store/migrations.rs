@@ -135,6 +135,16 @@ CREATE TABLE imports (
     imported_at TEXT NOT NULL                 -- ISO 8601, UTC
 ) WITHOUT ROWID;
 "#,
+    // 5: the greenhouse's air temperature, and each plant's phyllochron in
+    // degree-days per leaf above `[timeline] base_temp_c`.
+    r#"
+CREATE TABLE climate (
+    taken_at TEXT PRIMARY KEY,                -- facility local time, ISO 8601
+    temp_c   REAL NOT NULL,
+    source   TEXT NOT NULL                    -- the CSV it came from
+) WITHOUT ROWID;
+ALTER TABLE plants ADD COLUMN phyllochron_cd REAL;  -- °Cd per leaf; NULL without a log covering its leaves
+"#,
 ];
 
 /// The schema version this build writes (`PRAGMA user_version` after [`migrate`]).

@@ -148,8 +148,8 @@ pub struct Store {
 /// The `[timeline]` settings a fit depends on, as stored in `meta`.
 fn timeline_settings(tl: &crate::config::TimelineConfig) -> String {
     format!(
-        "fusion={};session_gap_minutes={};living_window={};death_penalty={}",
-        tl.fusion, tl.session_gap_minutes, tl.living_window, tl.death_penalty
+        "fusion={};session_gap_minutes={};living_window={};death_penalty={};base_temp_c={}",
+        tl.fusion, tl.session_gap_minutes, tl.living_window, tl.death_penalty, tl.base_temp_c
     )
 }
 
@@ -469,6 +469,59 @@ impl Store {
         }
         tx.commit()?;
         Ok((rows.len(), plants.len()))
+    }
+
+    /// Stores air temperatures (facility local time, °C) from `source`, in one
+    /// transaction; a reading at a time already logged is replaced. Every
+    /// plant's thermal phyllochron is then worked out again. Returns how many
+    /// plants have one.
+    pub fn import_climate(
+        &mut self,
+        source: &str,
+        readings: &[(NaiveDateTime, f64)],
+        journal: Option<&str>,
+    ) -> anyhow::Result<usize> {
+        let now = now_utc();
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        for (t, c) in readings {
+            tx.execute(
+                "INSERT INTO climate (taken_at, temp_c, source) VALUES (?1, ?2, ?3)
+                 ON CONFLICT (taken_at) DO UPDATE SET temp_c = excluded.temp_c, source = excluded.source",
+                params![iso(*t), c, source],
+            )?;
+        }
+        let plants: Vec<i64> = tx
+            .prepare("SELECT id FROM plants")?
+            .query_map([], |r| r.get(0))?
+            .collect::<Result<_, _>>()?;
+        let mut with = 0;
+        for id in plants {
+            let events: Vec<(u32, NaiveDateTime)> = tx
+                .prepare_cached("SELECT leaf, emerged_at FROM events WHERE plant_id = ?1 ORDER BY leaf")?
+                .query_map([id], |r| Ok((r.get(0)?, r.get::<_, String>(1)?)))?
+                .map(|r| {
+                    let (leaf, at) = r?;
+                    Ok((leaf, parse_iso(&at)?))
+                })
+                .collect::<anyhow::Result<_>>()?;
+            let cd = thermal_phyllochron(&tx, &events, self.params.base_temp_c)?;
+            with += usize::from(cd.is_some());
+            tx.execute(
+                "UPDATE plants SET phyllochron_cd = ?2 WHERE id = ?1",
+                params![id, cd],
+            )?;
+        }
+        if let Some(journal) = journal {
+            tx.execute(
+                "INSERT OR REPLACE INTO imports (journal, source, rows, plants, imported_at)
+                 VALUES (?1, ?2, ?3, 0, ?4)",
+                params![journal, source, readings.len(), now],
+            )?;
+        }
+        tx.commit()?;
+        Ok(with)
     }
 
     /// The import-journal entries this database holds.
@@ -854,9 +907,11 @@ fn recompute(
         k += 1.0;
     }
     let last = tl.sessions.last();
+    let events: Vec<(u32, NaiveDateTime)> = tl.events.iter().map(|e| (e.leaf, e.at)).collect();
+    let phyllochron_cd = thermal_phyllochron(tx, &events, params.base_temp_c)?;
     tx.execute(
         "UPDATE plants SET sessions = ?2, last_taken_at = ?3, leaves_emerged = ?4, living = ?5,
-             phyllochron_days = ?6, updated_at = ?7 WHERE id = ?1",
+             phyllochron_days = ?6, updated_at = ?7, phyllochron_cd = ?8 WHERE id = ?1",
         params![
             plant_id,
             tl.sessions.len() as i64,
@@ -864,7 +919,8 @@ fn recompute(
             last.map(|s| s.emerged),
             last.map(|s| s.living),
             tl.phyllochron_days,
-            now
+            now,
+            phyllochron_cd
         ],
     )?;
     Ok(Diff {
@@ -875,6 +931,39 @@ fn recompute(
             .map(|s| (s.fused, s.emerged, s.start))
             .collect(),
     })
+}
+
+/// Degree-days per leaf over `events` (leaf, emergence), from the
+/// temperatures logged around them; `None` without a log that covers them.
+fn thermal_phyllochron(
+    tx: &Transaction,
+    events: &[(u32, NaiveDateTime)],
+    base_temp_c: f64,
+) -> anyhow::Result<Option<f64>> {
+    let (Some(first), Some(last)) = (events.iter().map(|e| e.1).min(), events.iter().map(|e| e.1).max())
+    else {
+        return Ok(None);
+    };
+    if events.len() < 2 {
+        return Ok(None);
+    }
+    // A day either side reaches the readings that bracket the first and last leaf.
+    let margin = chrono::Duration::days(1);
+    let readings: Vec<(String, f64)> = tx
+        .prepare_cached("SELECT taken_at, temp_c FROM climate WHERE taken_at BETWEEN ?1 AND ?2")?
+        .query_map(params![iso(first - margin), iso(last + margin)], |r| {
+            Ok((r.get(0)?, r.get(1)?))
+        })?
+        .collect::<Result<_, _>>()?;
+    if readings.is_empty() {
+        return Ok(None);
+    }
+    let readings = readings
+        .into_iter()
+        .map(|(t, c)| Ok((parse_iso(&t)?, c)))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let clock = crate::thermal::ThermalClock::new(readings, base_temp_c);
+    Ok(crate::thermal::phyllochron(&clock, events))
 }
 
 fn push_feed(tx: &Transaction, row: &FeedRow, now: &str) -> anyhow::Result<()> {

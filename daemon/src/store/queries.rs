@@ -85,6 +85,9 @@ pub struct PlantTimeline {
     pub plant: String,
     /// Days per leaf.
     pub phyllochron_days: Option<f64>,
+    /// Degree-days per leaf above `[timeline] base_temp_c`, with a temperature
+    /// log covering its leaves ([`crate::thermal`]).
+    pub phyllochron_cd: Option<f64>,
     /// Sessions: start, per-view counts, fused, leaves emerged, living.
     pub sessions: Vec<SessionRow>,
     /// Emergence events: leaf, estimated time, first seen.
@@ -301,12 +304,12 @@ impl Store {
 
     /// One plant's timeline as stored.
     pub fn plant_timeline(&self, plant: &str) -> anyhow::Result<Option<PlantTimeline>> {
-        let Some((id, phyllochron_days)) = self
+        let Some((id, phyllochron_days, phyllochron_cd)) = self
             .conn
             .query_row(
-                "SELECT id, phyllochron_days FROM plants WHERE name = ?1",
+                "SELECT id, phyllochron_days, phyllochron_cd FROM plants WHERE name = ?1",
                 [plant],
-                |r| Ok((r.get::<_, i64>(0)?, r.get(1)?)),
+                |r| Ok((r.get::<_, i64>(0)?, r.get(1)?, r.get(2)?)),
             )
             .optional()?
         else {
@@ -348,6 +351,7 @@ impl Store {
         Ok(Some(PlantTimeline {
             plant: plant.to_string(),
             phyllochron_days,
+            phyllochron_cd,
             sessions,
             events,
         }))

@@ -446,7 +446,7 @@ fn opening_with_other_timeline_settings_refits_every_plant() {
         .query_row("SELECT value FROM meta WHERE key = 'timeline'", [], |r| r.get(0))
         .unwrap();
     assert!(
-        kept.contains("fusion=max-side;") && kept.ends_with("death_penalty=0"),
+        kept.contains("fusion=max-side;") && kept.ends_with("death_penalty=0;base_temp_c=10"),
         "{kept}"
     );
 }
@@ -529,4 +529,49 @@ fn counts_keep_their_settings_and_older_databases_gain_the_column() {
     let current = settings[1].as_deref().unwrap();
     assert_eq!(s.counts_with_other_settings(current).unwrap(), 0);
     assert_eq!(s.counts_with_other_settings("{}").unwrap(), 1);
+}
+
+#[test]
+fn a_temperature_log_gives_the_phyllochron_in_degree_days() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    // A leaf every 3 days for 15 days, five views a day.
+    let rows: Vec<(String, NaiveDateTime, View, u32)> = (0..15)
+        .flat_map(|d| (0..5).map(move |v| ("P1".to_string(), day(d), View::Side(v * 72), 4 + d as u32 / 3)))
+        .collect();
+    s.import("counts.csv", &rows, None).unwrap();
+    let days = s.plant_timeline("P1").unwrap().unwrap().phyllochron_days.unwrap();
+    assert!((days - 3.0).abs() < 0.01, "{days}");
+    assert_eq!(
+        s.plant_timeline("P1").unwrap().unwrap().phyllochron_cd,
+        None,
+        "no log yet"
+    );
+    // A steady 22 °C, hourly, from two days before to two days after: 12 °Cd a day.
+    let log: Vec<(NaiveDateTime, f64)> = (-48..(15 * 24 + 48))
+        .map(|h| (day(0) + Duration::hours(h), 22.0))
+        .collect();
+    assert_eq!(
+        s.import_climate("log.csv", &log, Some("2026-12-05T101500"))
+            .unwrap(),
+        1
+    );
+    let cd = s.plant_timeline("P1").unwrap().unwrap().phyllochron_cd.unwrap();
+    assert!((cd - 12.0 * days).abs() < 1e-6, "{cd} vs {days}");
+    assert!(s.journaled_imports().unwrap().contains("2026-12-05T101500"));
+    // A new count refits the plant, and the thermal phyllochron with it.
+    let more = vec![("P1".to_string(), day(15), View::Side(0), 9)];
+    s.import("late.csv", &more, None).unwrap();
+    let t = s.plant_timeline("P1").unwrap().unwrap();
+    assert!((t.phyllochron_cd.unwrap() - 12.0 * t.phyllochron_days.unwrap()).abs() < 1e-6);
+    // A log with a hole across the leaves gives none.
+    let holed: Vec<(NaiveDateTime, f64)> = log
+        .iter()
+        .filter(|(t, _)| *t < day(6) || *t > day(8))
+        .cloned()
+        .collect();
+    let other = tempfile::tempdir().unwrap();
+    let mut h = open(&other);
+    h.import("counts.csv", &rows, None).unwrap();
+    assert_eq!(h.import_climate("holed.csv", &holed, None).unwrap(), 0);
 }
