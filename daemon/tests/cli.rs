@@ -624,6 +624,12 @@ fn a_temperature_log_gives_degree_days_per_leaf() {
         "{out}"
     );
 
+    let status: serde_json::Value = serde_json::from_str(&ok(&["status", "-c", cfg, "--json"])).unwrap();
+    assert_eq!(status["climate"]["readings"], 1152, "{status}");
+    assert_eq!(status["climate"]["longest_gap_hours"], 0.5, "{status}");
+    assert!(ok(&["status", "-c", cfg]).contains(
+        "climate:   1152 temperatures from 2026-10-30T00:00 to 2026-11-22T23:30; longest gap 0.5 h\n"
+    ));
     let t: serde_json::Value = serde_json::from_str(&ok(&["timeline", "-c", cfg, "F-1", "--json"])).unwrap();
     let (days, cd) = (
         t["phyllochron_days"].as_f64().unwrap(),

@@ -204,6 +204,7 @@ fn show(args: Args) -> anyhow::Result<()> {
     let state_dir = config.state_dir();
     let free = crate::disk::free_bytes(&state_dir).ok();
     let in_doubt = crate::review::rank(&store.plant_timelines()?, None).len();
+    let climate = store.climate_summary()?;
     let get = |k: &str| svc.get(k).cloned().unwrap_or_else(|| "-".into());
     let state = service_state(&svc);
     if args.json {
@@ -213,6 +214,7 @@ fn show(args: Args) -> anyhow::Result<()> {
             "images": counts,
             "timeline": timeline,
             "sessions_in_doubt": in_doubt,
+            "climate": climate,
             "last_image": last,
             "recent_failures": failures,
             "counts_with_other_settings": other_settings,
@@ -253,6 +255,20 @@ fn show(args: Args) -> anyhow::Result<()> {
         timeline.plants_with_lost_leaves,
         timeline.settings.as_deref().unwrap_or("-")
     );
+    if let Some(c) = &climate {
+        println!(
+            "climate:   {} temperatures from {} to {}; longest gap {:.1} h{}",
+            c.readings,
+            &c.first[..c.first.len().min(16)],
+            &c.last[..c.last.len().min(16)],
+            c.longest_gap_hours,
+            if c.longest_gap_hours > crate::thermal::MAX_GAP_HOURS {
+                " (no degree-days across gaps over 6 h)"
+            } else {
+                ""
+            }
+        );
+    }
     if in_doubt > 0 {
         println!("review:    {in_doubt} plant sessions in doubt: `phyllo review` lists the most doubtful to count by hand");
     }

@@ -34,7 +34,7 @@ use rusqlite::{params, Connection, OpenFlags, OptionalExtension, Transaction, Tr
 use crate::names::{ParsedName, View};
 use crate::timeline::{self, Obs, TimelineParams};
 
-pub use queries::{FeedRow, ImageCounts, LastImage, PlantTimeline, SessionRow};
+pub use queries::{ClimateSummary, FeedRow, ImageCounts, LastImage, PlantTimeline, SessionRow};
 
 /// Formats a facility time the way the database and exports store it.
 pub fn iso(t: NaiveDateTime) -> String {

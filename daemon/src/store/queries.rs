@@ -94,6 +94,19 @@ pub struct PlantTimeline {
     pub events: Vec<(u32, String, String)>,
 }
 
+/// What the temperature log holds ([`Store::climate_summary`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ClimateSummary {
+    /// Readings.
+    pub readings: i64,
+    /// First reading (facility local time).
+    pub first: String,
+    /// Last reading.
+    pub last: String,
+    /// Longest time between two readings, hours.
+    pub longest_gap_hours: f64,
+}
+
 /// One session row of a plant timeline.
 #[derive(Debug, Clone, Serialize)]
 pub struct SessionRow {
@@ -284,6 +297,32 @@ impl Store {
             [settings],
             |r| r.get(0),
         )?)
+    }
+
+    /// The temperature log: readings, first and last reading, and the
+    /// longest time between two readings in hours; `None` without one.
+    pub fn climate_summary(&self) -> anyhow::Result<Option<ClimateSummary>> {
+        let (readings, first, last): (i64, Option<String>, Option<String>) = self.conn.query_row(
+            "SELECT COUNT(*), MIN(taken_at), MAX(taken_at) FROM climate",
+            [],
+            |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
+        )?;
+        let (Some(first), Some(last)) = (first, last) else {
+            return Ok(None);
+        };
+        let longest_gap_hours: Option<f64> = self.conn.query_row(
+            // julianday is a float of days: rounded to a few seconds.
+            "SELECT ROUND(MAX((julianday(taken_at) - julianday(prev)) * 24), 3) FROM
+               (SELECT taken_at, LAG(taken_at) OVER (ORDER BY taken_at) AS prev FROM climate)",
+            [],
+            |r| r.get(0),
+        )?;
+        Ok(Some(ClimateSummary {
+            readings,
+            first,
+            last,
+            longest_gap_hours: longest_gap_hours.unwrap_or(0.0),
+        }))
     }
 
     /// All plant ids, sorted.
