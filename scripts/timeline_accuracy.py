@@ -102,6 +102,11 @@ def run_timeline(phyllo, obs, rule, work):
         w.writerow(["plant", "timestamp", "view", "leaf_count"])
         w.writerows(obs)
     subprocess.run([phyllo, "import", "-c", cfg, obs_csv], check=True, capture_output=True)
+    return exported(phyllo, cfg, work)
+
+
+def exported(phyllo, cfg, work):
+    """The store's timeline and events, exported into `work`: (timeline, events) rows."""
     out = {}
     for what in ("timeline", "events"):
         path = os.path.join(work, f"{what}.csv")
@@ -130,12 +135,7 @@ def corrected_run(phyllo, obs, rule, work, truth_by, pick):
         for plant, start in pick(cfg, timeline):
             w.writerow([plant, start, "human", truth_by[(plant, start[:10])]])
     subprocess.run([phyllo, "import", "-c", cfg, sheet], check=True, capture_output=True)
-    out = {}
-    for what in ("timeline", "events"):
-        path = os.path.join(work, f"{what}.csv")
-        subprocess.run([phyllo, "export", "-c", cfg, "--what", what, "--out", path], check=True, capture_output=True)
-        out[what] = read_csv(path)
-    return out["timeline"], out["events"]
+    return exported(phyllo, cfg, work)
 
 
 def review_table(phyllo, obs, rule, truth, scratch):

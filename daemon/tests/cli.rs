@@ -163,7 +163,7 @@ fn operator_commands() {
     let plants = std::fs::read_to_string(d.join("state/exports/plants.csv")).unwrap();
     assert!(
         plants.starts_with(
-            "plant,sessions,first_session,last_session,leaves_emerged,living,leaves_lost,phyllochron_days,events,last_emergence\r\n"
+            "plant,sessions,first_session,last_session,leaves_emerged,living,leaves_lost,phyllochron_days,events,last_emergence,phyllochron_cd\r\n"
         ),
         "{plants}"
     );
@@ -500,16 +500,12 @@ fn review_lists_the_days_in_doubt_and_the_filled_sheet_settles_them() {
     assert!(page.contains("<h2>Days to check</h2>"), "{page}");
 }
 
-/// `phyllo groups --compare`: every two groups tested against each other
-/// (Welch), on the terminal, in JSON and as `group_pairs.csv`.
-#[test]
-fn groups_compare_tests_every_two_groups() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
+/// A config in `d` grouping plants by genotype, and 21 days of counts
+/// imported for six plants: a leaf every 2, 2 and 3 days in genotype F,
+/// every 4, 4 and 5 in S. Returns the config's path.
+fn two_genotypes(d: &Path) -> String {
     let (cfg, _) = site_config(d, "[groups]\npattern = '^(?P<genotype>[A-Z]+)-\\d+$'\n");
-    let cfg = cfg.as_str();
     let mut obs = String::from("plant,timestamp,view,leaf_count\n");
-    // A leaf every 2, 2 and 3 days in F, every 4, 4 and 5 in S.
     for (p, every) in [
         ("F-1", 2),
         ("F-2", 2),
@@ -530,7 +526,18 @@ fn groups_compare_tests_every_two_groups() {
         }
     }
     std::fs::write(d.join("obs.csv"), obs).unwrap();
-    ok(&["import", "-c", cfg, d.join("obs.csv").to_str().unwrap()]);
+    ok(&["import", "-c", &cfg, d.join("obs.csv").to_str().unwrap()]);
+    cfg
+}
+
+/// `phyllo groups --compare`: every two groups tested against each other
+/// (Welch), on the terminal, in JSON and as `group_pairs.csv`.
+#[test]
+fn groups_compare_tests_every_two_groups() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cfg = two_genotypes(d);
+    let cfg = cfg.as_str();
     let rep: serde_json::Value =
         serde_json::from_str(&ok(&["groups", "-c", cfg, "--compare", "--json"])).unwrap();
     let pairs = rep["pairs"].as_array().unwrap();
@@ -564,30 +571,8 @@ fn groups_compare_tests_every_two_groups() {
 fn a_temperature_log_gives_degree_days_per_leaf() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let (cfg, _) = site_config(d, "[groups]\npattern = '^(?P<genotype>[A-Z]+)-\\d+$'\n");
+    let cfg = two_genotypes(d);
     let cfg = cfg.as_str();
-    let mut obs = String::from("plant,timestamp,view,leaf_count\n");
-    for (p, every) in [
-        ("F-1", 2),
-        ("F-2", 2),
-        ("F-3", 3),
-        ("S-1", 4),
-        ("S-2", 4),
-        ("S-3", 5),
-    ] {
-        for day in 0..21 {
-            for a in [0, 72, 144] {
-                obs += &format!(
-                    "{p},2026-11-{:02}T10:00:{:02},SV_{a},{}\n",
-                    1 + day,
-                    a / 72,
-                    4 + day / every
-                );
-            }
-        }
-    }
-    std::fs::write(d.join("obs.csv"), obs).unwrap();
-    ok(&["import", "-c", cfg, d.join("obs.csv").to_str().unwrap()]);
 
     // 18 °C at night, 28 °C by day, every 30 minutes from 30 October on
     // (13 °Cd a day above 10 °C, less where the steps are smoothed).
@@ -656,9 +641,16 @@ fn a_temperature_log_gives_degree_days_per_leaf() {
         text.lines()
             .next()
             .unwrap()
-            .contains(",phyllochron_days,phyllochron_cd,"),
+            .ends_with(",last_emergence,phyllochron_cd"),
         "{text}"
     );
+    // Leaves emerge at the same hour each day, so each day between two adds
+    // exactly 13 °Cd: 26 for a leaf every two days, 65 for one every five.
+    assert!(
+        text.contains("\r\nF-1,") && text.contains(",2026-11-20T22:00:00.000,26\r\n"),
+        "{text}"
+    );
+    assert!(text.contains(",2026-11-20T22:00:00.000,65\r\n"), "{text}");
     let rep: serde_json::Value =
         serde_json::from_str(&ok(&["groups", "-c", cfg, "--compare", "--json"])).unwrap();
     let f = &rep["summaries"][0]["phyllochron_cd"];

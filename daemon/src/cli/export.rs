@@ -19,7 +19,7 @@ pub struct Args {
     #[arg(long, value_name = "FILE.csv")]
     out: Option<PathBuf>,
     /// Only rows at or after this date (YYYY-MM-DD) or time (YYYY-MM-DDTHH:MM:SS).
-    #[arg(long, value_name = "DATE")]
+    #[arg(long, value_name = "DATE", value_parser = super::import::parse_since)]
     since: Option<String>,
     /// What to export.
     #[arg(long, default_value = "timeline", value_parser = KINDS)]
@@ -29,19 +29,14 @@ pub struct Args {
 /// Runs `phyllo export`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
-    let since = args
-        .since
-        .as_deref()
-        .map(super::import::parse_since)
-        .transpose()?;
     let store = Store::open_read_only(&config.database)?;
     match args.out {
         Some(out) => {
-            let n = export::export(store.conn(), &args.what, since.as_deref(), &out)?;
+            let n = export::export(store.conn(), &args.what, args.since.as_deref(), &out)?;
             println!("{}: {n} rows → {}", args.what, out.display());
             Ok(())
         }
-        None => nightly(&config, &store, since.as_deref()),
+        None => nightly(&config, &store, args.since.as_deref()),
     }
 }
 

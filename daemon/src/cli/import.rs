@@ -77,13 +77,7 @@ pub enum Kind {
 /// Reads the header of `path`: a `temp_c` column without a `leaf_count`
 /// makes a temperature log, anything else is read as counts.
 pub fn kind(path: &std::path::Path) -> anyhow::Result<Kind> {
-    let mut rdr = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .from_path(path)
-        .with_context(|| format!("reading {}", path.display()))?;
-    let headers = rdr
-        .headers()
-        .with_context(|| format!("{}: header row", path.display()))?;
+    let (_, headers) = open_csv(path)?;
     let has = |name: &str| headers.iter().any(|h| h.eq_ignore_ascii_case(name));
     Ok(if has("temp_c") && !has("leaf_count") {
         Kind::Climate
@@ -114,11 +108,7 @@ pub fn take(store: &mut Store, entry: &import_journal::Entry) -> anyhow::Result<
 /// Reads and validates a temperature log (`timestamp,temp_c`, other columns
 /// ignored); errors name the file, line and problem.
 pub fn read_climate(path: &std::path::Path) -> anyhow::Result<Vec<(NaiveDateTime, f64)>> {
-    let mut rdr = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .from_path(path)
-        .with_context(|| format!("reading {}", path.display()))?;
-    let headers = rdr.headers()?.clone();
+    let (mut rdr, headers) = open_csv(path)?;
     let col = |name: &str| headers.iter().position(|h| h.eq_ignore_ascii_case(name));
     let (Some(ct), Some(cc)) = (col("timestamp"), col("temp_c")) else {
         bail!(
@@ -149,8 +139,8 @@ pub fn read_climate(path: &std::path::Path) -> anyhow::Result<Vec<(NaiveDateTime
     Ok(out)
 }
 
-/// Reads and validates the CSV; errors name the file, line and problem.
-pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Sheet> {
+/// Opens an import CSV (fields trimmed) and reads its header row.
+fn open_csv(path: &std::path::Path) -> anyhow::Result<(csv::Reader<std::fs::File>, csv::StringRecord)> {
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_path(path)
@@ -159,6 +149,12 @@ pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Sheet> {
         .headers()
         .with_context(|| format!("{}: header row", path.display()))?
         .clone();
+    Ok((rdr, headers))
+}
+
+/// Reads and validates the CSV; errors name the file, line and problem.
+pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Sheet> {
+    let (mut rdr, headers) = open_csv(path)?;
     let col = |name: &str| -> anyhow::Result<usize> {
         headers
             .iter()

@@ -18,7 +18,7 @@ pub struct Args {
     #[arg(long, default_value_t = NIGHTLY)]
     top: usize,
     /// Only sessions from this date (YYYY-MM-DD) or time on.
-    #[arg(long, value_name = "DATE")]
+    #[arg(long, value_name = "DATE", value_parser = super::import::parse_since)]
     since: Option<String>,
     /// Only this plant's sessions.
     #[arg(long, value_name = "NAME")]
@@ -38,11 +38,6 @@ pub struct Args {
 /// Runs `phyllo review`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
-    let since = args
-        .since
-        .as_deref()
-        .map(super::import::parse_since)
-        .transpose()?;
     let store = Store::open_read_only(&config.database)?;
     let timelines = match &args.plant {
         Some(p) => store.plant_timeline(p)?.into_iter().collect::<Vec<_>>(),
@@ -51,7 +46,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let (Some(p), true) = (&args.plant, timelines.is_empty()) {
         anyhow::bail!("no plant {p:?} in {}", config.database.display());
     }
-    let ranked = rank(&timelines, since.as_deref());
+    let ranked = rank(&timelines, args.since.as_deref());
     let items = review_sheet::items(&store, &ranked, args.top)?;
     if let Some(out) = &args.csv {
         let n = review_sheet::write(out, &items)?;

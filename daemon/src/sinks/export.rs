@@ -57,9 +57,10 @@ fn query(kind: &str) -> anyhow::Result<&'static str> {
                     (SELECT MIN(s.start) FROM sessions s WHERE s.plant_id = p.id) AS first_session,
                     p.last_taken_at AS last_session, p.leaves_emerged, p.living,
                     (SELECT COALESCE(MAX(s.leaves_lost), 0) FROM sessions s WHERE s.plant_id = p.id) AS leaves_lost,
-                    p.phyllochron_days, p.phyllochron_cd,
+                    p.phyllochron_days,
                     (SELECT COUNT(*) FROM events e WHERE e.plant_id = p.id) AS events,
-                    (SELECT MAX(e.emerged_at) FROM events e WHERE e.plant_id = p.id) AS last_emergence
+                    (SELECT MAX(e.emerged_at) FROM events e WHERE e.plant_id = p.id) AS last_emergence,
+                    p.phyllochron_cd
              FROM plants p
              WHERE ?1 IS NULL OR p.last_taken_at >= ?1
              ORDER BY p.name"
