@@ -104,6 +104,24 @@ pub fn forget(journal: &Path, entry: &Entry) -> anyhow::Result<()> {
     std::fs::remove_dir_all(&dir).with_context(|| format!("removing {}", dir.display()))
 }
 
+/// Sets aside every entry whose file is named `source` (renamed to
+/// `<id>.undone`, kept but no longer an entry), so that a restore does not
+/// take back an import that was undone. Returns how many.
+pub fn retire(journal: &Path, source: &str) -> anyhow::Result<usize> {
+    let mut n = 0;
+    for entry in entries(journal)?.into_iter().filter(|e| e.source() == source) {
+        let from = journal.join(&entry.id);
+        let to = journal.join(format!("{}.undone", entry.id));
+        std::fs::rename(&from, &to)
+            .with_context(|| format!("renaming {} to {}", from.display(), to.display()))?;
+        n += 1;
+    }
+    if n > 0 {
+        sync_dir(journal)?;
+    }
+    Ok(n)
+}
+
 /// Every entry in `journal`, oldest first (none if it does not exist).
 pub fn entries(journal: &Path) -> anyhow::Result<Vec<Entry>> {
     let read = match std::fs::read_dir(journal) {
@@ -215,6 +233,10 @@ mod tests {
         assert_eq!(missing(&journal, &held).unwrap(), [second, later.clone()]);
         forget(&journal, &later).unwrap();
         assert_eq!(entries(&journal).unwrap().len(), 3);
+        // Undone: set aside, no longer an entry.
+        assert_eq!(retire(&journal, "fixes.csv").unwrap(), 3);
+        assert!(entries(&journal).unwrap().is_empty());
+        assert!(journal.join("2026-12-05T101500.undone/fixes.csv").exists());
         assert!(entries(&tmp.path().join("none")).unwrap().is_empty());
     }
 }

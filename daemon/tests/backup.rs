@@ -311,4 +311,16 @@ fn a_restore_takes_the_later_imports_again_unless_told_not_to() {
         3,
         "each count once, under its file's name"
     );
+
+    // Undone after all: a later restore does not bring it back.
+    assert!(site.phyllo(&["import", "--undo", "fix.csv"]).status.success());
+    assert_eq!(rows(&site.db, emerged), ["6.000000"]);
+    let out = site.phyllo(&["restore", snap.to_str().unwrap()]);
+    let printed = String::from_utf8_lossy(&out.stdout);
+    assert!(!printed.contains("fix.csv"), "{printed}");
+    assert_eq!(
+        rows(&site.db, emerged),
+        ["6.000000"],
+        "the undone import stays undone"
+    );
 }

@@ -410,6 +410,21 @@ fn a_persons_correction_overrides_the_views() {
         .map(|s| s["fused"].as_f64().unwrap())
         .collect();
     assert_eq!(fused, [6.0, 7.0, 7.0, 8.0, 9.0]);
+
+    // Imported by mistake: taken back, the model's views decide again.
+    let out = ok(&["import", "-c", cfg, "--undo", "fix.csv"]);
+    assert!(
+        out.starts_with("took back 1 counts and 0 temperatures imported from fix.csv; 1 plants refitted; 2 journal entries set aside"),
+        "{out}"
+    );
+    let t: serde_json::Value = serde_json::from_str(&ok(&["timeline", "-c", cfg, "P1", "--json"])).unwrap();
+    assert_eq!(t["sessions"][2]["fused"], 8.0, "{}", t["sessions"][2]);
+    assert!(t["sessions"][2]["views"].get("human:ana").is_none());
+    let again = phyllo(&["import", "-c", cfg, "--undo", "fix.csv"]);
+    assert!(!again.status.success());
+    assert!(
+        String::from_utf8_lossy(&again.stderr).contains("nothing was imported from a file named \"fix.csv\"")
+    );
 }
 
 /// The loop a breeder runs: `phyllo review` lists the sessions most in

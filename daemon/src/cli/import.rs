@@ -22,8 +22,14 @@ pub struct Args {
     /// (other columns are ignored), or a greenhouse temperature log with
     /// columns timestamp,temp_c. Timestamps: ISO 8601 (`2018-04-20T10:32:16`,
     /// a space instead of `T`, or a date alone for noon), facility local time.
-    #[arg(value_name = "OBS.csv")]
-    file: PathBuf,
+    #[arg(value_name = "OBS.csv", required_unless_present = "undo")]
+    file: Option<PathBuf>,
+    /// Take back everything imported from files of this name (a sheet
+    /// imported by mistake): its counts or temperatures leave the database,
+    /// its plants are refitted, and its journal entries are set aside so a
+    /// restore does not bring it back.
+    #[arg(long, value_name = "NAME.csv", conflicts_with = "file")]
+    undo: Option<String>,
 }
 
 /// Runs `phyllo import`: the CSV is checked, kept in the import journal,
@@ -31,15 +37,20 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let _writing = WritersLock::shared(&config.database)?;
-    let skipped = match kind(&args.file)? {
-        Kind::Counts => read_rows(&args.file)?.skipped,
+    let journal = import_journal::dir(&config.state_dir());
+    let file = match (args.file, args.undo) {
+        (Some(file), _) => file,
+        (None, Some(name)) => return undo(&config, &journal, &name),
+        (None, None) => unreachable!("clap requires OBS.csv or --undo"),
+    };
+    let skipped = match kind(&file)? {
+        Kind::Counts => read_rows(&file)?.skipped,
         Kind::Climate => {
-            read_climate(&args.file)?;
+            read_climate(&file)?;
             0
         }
     };
-    let journal = import_journal::dir(&config.state_dir());
-    let kept = import_journal::keep(&journal, &args.file, chrono::Local::now().naive_local())?;
+    let kept = import_journal::keep(&journal, &file, chrono::Local::now().naive_local())?;
     let entry = kept.entry;
     let imported = Store::open(&config.database, &config.timeline, config.inference.max_attempts)
         .and_then(|mut store| take(&mut store, &entry));
@@ -54,13 +65,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     println!(
         "imported {done} from {} (kept as {}){}",
-        args.file.display(),
+        file.display(),
         entry.file.display(),
         if skipped > 0 {
             format!("; {skipped} rows without a leaf_count skipped")
         } else {
             String::new()
         }
+    );
+    Ok(())
+}
+
+/// `phyllo import --undo NAME`.
+fn undo(config: &crate::config::Config, journal: &std::path::Path, name: &str) -> anyhow::Result<()> {
+    let mut store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
+    let (counts, temps, plants) = store.unimport(name)?;
+    let retired = import_journal::retire(journal, name)?;
+    if counts + temps == 0 && retired == 0 {
+        bail!(
+            "nothing was imported from a file named {name:?} into {}",
+            config.database.display()
+        );
+    }
+    println!(
+        "took back {counts} counts and {temps} temperatures imported from {name}; {plants} plants refitted; \
+         {retired} journal entries set aside (as <entry>.undone in {})",
+        journal.display()
     );
     Ok(())
 }

@@ -492,27 +492,7 @@ impl Store {
                 params![iso(*t), c, source],
             )?;
         }
-        let plants: Vec<i64> = tx
-            .prepare("SELECT id FROM plants")?
-            .query_map([], |r| r.get(0))?
-            .collect::<Result<_, _>>()?;
-        let mut with = 0;
-        for id in plants {
-            let events: Vec<(u32, NaiveDateTime)> = tx
-                .prepare_cached("SELECT leaf, emerged_at FROM events WHERE plant_id = ?1 ORDER BY leaf")?
-                .query_map([id], |r| Ok((r.get(0)?, r.get::<_, String>(1)?)))?
-                .map(|r| {
-                    let (leaf, at) = r?;
-                    Ok((leaf, parse_iso(&at)?))
-                })
-                .collect::<anyhow::Result<_>>()?;
-            let cd = thermal_phyllochron(&tx, &events, self.params.base_temp_c)?;
-            with += usize::from(cd.is_some());
-            tx.execute(
-                "UPDATE plants SET phyllochron_cd = ?2 WHERE id = ?1",
-                params![id, cd],
-            )?;
-        }
+        let with = refresh_thermal(&tx, self.params.base_temp_c)?;
         if let Some(journal) = journal {
             tx.execute(
                 "INSERT OR REPLACE INTO imports (journal, source, rows, plants, imported_at)
@@ -522,6 +502,57 @@ impl Store {
         }
         tx.commit()?;
         Ok(with)
+    }
+
+    /// Takes back everything imported from files named `source` (counts
+    /// and temperatures), refitting the plants it touched. The image counts
+    /// and other imports stay. Returns (counts removed, temperatures removed,
+    /// plants refitted).
+    pub fn unimport(&mut self, source: &str) -> anyhow::Result<(usize, usize, usize)> {
+        let now = now_utc();
+        let model_id = format!("import:{source}");
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let plants: Vec<(i64, String)> = tx
+            .prepare(
+                "SELECT DISTINCT p.id, p.name FROM observations o JOIN plants p ON p.id = o.plant_id
+                 WHERE o.image_id IS NULL AND o.model_id = ?1 ORDER BY p.id",
+            )?
+            .query_map([&model_id], |r| Ok((r.get(0)?, r.get(1)?)))?
+            .collect::<Result<_, _>>()?;
+        let counts = tx.execute(
+            "DELETE FROM observations WHERE image_id IS NULL AND model_id = ?1",
+            [&model_id],
+        )?;
+        let temps = tx.execute("DELETE FROM climate WHERE source = ?1", [source])?;
+        for (id, name) in &plants {
+            recompute(
+                &tx,
+                &self.params,
+                &self.fusion_name,
+                *id,
+                name,
+                &now,
+                Announce::Each,
+            )?;
+            push_feed(
+                &tx,
+                &FeedRow {
+                    kind: "import".into(),
+                    plant: Some(name.clone()),
+                    message: Some(format!("counts imported from {source} taken back")),
+                    ..FeedRow::default()
+                },
+                &now,
+            )?;
+        }
+        if temps > 0 {
+            refresh_thermal(&tx, self.params.base_temp_c)?;
+        }
+        tx.execute("DELETE FROM imports WHERE source = ?1", [source])?;
+        tx.commit()?;
+        Ok((counts, temps, plants.len()))
     }
 
     /// The import-journal entries this database holds.
@@ -931,6 +962,33 @@ fn recompute(
             .map(|s| (s.fused, s.emerged, s.start))
             .collect(),
     })
+}
+
+/// Works out every plant's thermal phyllochron again (after the temperature
+/// log changed); returns how many plants have one.
+fn refresh_thermal(tx: &Transaction, base_temp_c: f64) -> anyhow::Result<usize> {
+    let plants: Vec<i64> = tx
+        .prepare("SELECT id FROM plants")?
+        .query_map([], |r| r.get(0))?
+        .collect::<Result<_, _>>()?;
+    let mut with = 0;
+    for id in plants {
+        let events: Vec<(u32, NaiveDateTime)> = tx
+            .prepare_cached("SELECT leaf, emerged_at FROM events WHERE plant_id = ?1 ORDER BY leaf")?
+            .query_map([id], |r| Ok((r.get(0)?, r.get::<_, String>(1)?)))?
+            .map(|r| {
+                let (leaf, at) = r?;
+                Ok((leaf, parse_iso(&at)?))
+            })
+            .collect::<anyhow::Result<_>>()?;
+        let cd = thermal_phyllochron(tx, &events, base_temp_c)?;
+        with += usize::from(cd.is_some());
+        tx.execute(
+            "UPDATE plants SET phyllochron_cd = ?2 WHERE id = ?1",
+            params![id, cd],
+        )?;
+    }
+    Ok(with)
 }
 
 /// Degree-days per leaf over `events` (leaf, emergence), from the
