@@ -79,7 +79,8 @@ pub fn keep(journal: &Path, csv: &Path, now: NaiveDateTime) -> anyhow::Result<Ke
     let stamp = now.format(STAMP).to_string();
     let mut id = stamp.clone();
     let mut n = 1;
-    while journal.join(&id).exists() {
+    // An undone entry keeps its name (with `.undone`), so the name stays taken.
+    while journal.join(&id).exists() || journal.join(format!("{id}.undone")).exists() {
         id = format!("{stamp}-{n}");
         n += 1;
     }
@@ -237,6 +238,10 @@ mod tests {
         assert_eq!(retire(&journal, "fixes.csv").unwrap(), 3);
         assert!(entries(&journal).unwrap().is_empty());
         assert!(journal.join("2026-12-05T101500.undone/fixes.csv").exists());
+        // A later import in the same second does not take an undone entry's name.
+        let next = kept(&csv, "2026-12-05 10:15:00");
+        assert_eq!(next.id, "2026-12-05T101500-3");
+        assert_eq!(retire(&journal, "fixes.csv").unwrap(), 1);
         assert!(entries(&tmp.path().join("none")).unwrap().is_empty());
     }
 }

@@ -420,6 +420,22 @@ fn a_persons_correction_overrides_the_views() {
     let t: serde_json::Value = serde_json::from_str(&ok(&["timeline", "-c", cfg, "P1", "--json"])).unwrap();
     assert_eq!(t["sessions"][2]["fused"], 8.0, "{}", t["sessions"][2]);
     assert!(t["sessions"][2]["views"].get("human:ana").is_none());
+    // A mistyped plant id is named, and taken back like any import.
+    let typo = d.join("typo.csv");
+    std::fs::write(
+        &typo,
+        "plant,timestamp,view,leaf_count\nP1,2026-11-04,human,8\nPl,2026-11-05,human,9\n",
+    )
+    .unwrap();
+    let out = phyllo(&["import", "-c", cfg, typo.to_str().unwrap()]);
+    let note = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success()
+            && note.contains("note: 1 plants new to the database: Pl (")
+            && note.contains("--undo typo.csv"),
+        "{note}"
+    );
+    ok(&["import", "-c", cfg, "--undo", "typo.csv"]);
     let again = phyllo(&["import", "-c", cfg, "--undo", "fix.csv"]);
     assert!(!again.status.success());
     assert!(

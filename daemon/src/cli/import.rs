@@ -43,17 +43,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (None, Some(name)) => return undo(&config, &journal, &name),
         (None, None) => unreachable!("clap requires OBS.csv or --undo"),
     };
-    let skipped = match kind(&file)? {
-        Kind::Counts => read_rows(&file)?.skipped,
+    let (skipped, plants) = match kind(&file)? {
+        Kind::Counts => {
+            let sheet = read_rows(&file)?;
+            let plants: std::collections::BTreeSet<String> = sheet.rows.into_iter().map(|r| r.0).collect();
+            (sheet.skipped, plants)
+        }
         Kind::Climate => {
             read_climate(&file)?;
-            0
+            (0, Default::default())
         }
     };
     let kept = import_journal::keep(&journal, &file, chrono::Local::now().naive_local())?;
     let entry = kept.entry;
-    let imported = Store::open(&config.database, &config.timeline, config.inference.max_attempts)
-        .and_then(|mut store| take(&mut store, &entry));
+    // Plants the database has never seen, named after the import: in a
+    // filled review sheet they are most likely typing errors.
+    let mut new_plants = Vec::new();
+    let imported = Store::open(&config.database, &config.timeline, config.inference.max_attempts).and_then(
+        |mut store| {
+            let known: std::collections::BTreeSet<String> = store.plants()?.into_iter().collect();
+            new_plants = plants.difference(&known).cloned().collect();
+            take(&mut store, &entry)
+        },
+    );
     let done = match imported {
         Ok(done) => done,
         Err(e) => {
@@ -73,6 +85,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             String::new()
         }
     );
+    if !new_plants.is_empty() && !plants.iter().all(|p| new_plants.contains(p)) {
+        let shown: Vec<&str> = new_plants.iter().take(10).map(String::as_str).collect();
+        eprintln!(
+            "note: {} plants new to the database: {}{} (a mistyped plant id makes a plant of its own: \
+             `phyllo import --undo {}` takes this file back)",
+            new_plants.len(),
+            shown.join(", "),
+            if new_plants.len() > shown.len() {
+                ", ..."
+            } else {
+                ""
+            },
+            entry.source()
+        );
+    }
     Ok(())
 }
 
