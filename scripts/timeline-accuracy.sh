@@ -30,15 +30,7 @@ if [ ! -e "$dir/truth.csv" ]; then
   "$bin/phyllo-gen" sequence --out "$dir" --plants "$plants" --days "$days" --start-age "$start_age" \
     --seed "$seed" --quiet
 fi
-# Counts are kept per model file, so a rerun only counts what is new.
-counts=$dir/counts-$(sha256sum "$model" | cut -c1-12).jsonl
-frames=$(find "$dir" -maxdepth 1 -name '*.png' | wc -l)
-if [ ! -s "$counts" ] || [ "$(wc -l <"$counts")" -ne "$frames" ]; then
-  echo "counting $frames frames of $dir with $(basename "$model")" >&2
-  find "$dir" -maxdepth 1 -name '*.png' -print0 | sort -z |
-    xargs -0 "$bin/phyllo" count --threads "${THREADS:-2}" --model "$model" --json >"$counts.part"
-  mv "$counts.part" "$counts"
-fi
+counts=$("$root/scripts/count-sequence.sh" "$dir" "$model")
 # shellcheck disable=SC2086 # RULES is a word list
 python3 "$root/scripts/timeline_accuracy.py" --phyllo "$bin/phyllo" --sequence "$dir" --counts "$counts" \
   --rules ${RULES:-second-max-side median-side max-side mean-side max view:SV_108} ${KEEP:+--keep "$KEEP"} \

@@ -1,6 +1,7 @@
 //! Command-line interface: argument parsing and validation, then hand-off to
 //! the command modules. Every bad argument is reported by name.
 
+use crate::climate::ClimateSpec;
 use crate::dataset::{self, DatasetArgs};
 use crate::plant::{growth::PlantTraits, preset::Preset, Plant};
 use crate::render::{self, look::Look, Quality, Scene, Stage, View, Window};
@@ -120,6 +121,12 @@ enum Command {
         /// stub (labelled stem); overrides every preset's `dead_remnant_chance`.
         #[arg(long)]
         dead_remnants: Option<f32>,
+        /// Greenhouse air temperature `MEAN[,SWING[,DRIFT]]` in °C (daily mean,
+        /// half the day–night swing [4], day-to-day spread [1.5]): plants then
+        /// develop by degree-days above 10 °C (the presets' days hold at 25 °C),
+        /// and the log is written as climate.csv for `phyllo import`.
+        #[arg(long)]
+        climate: Option<String>,
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
@@ -364,6 +371,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             spp,
             labels,
             dead_remnants,
+            climate,
             quiet,
         } => {
             check_age(start_age).context("--start-age")?;
@@ -380,6 +388,11 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 presets: with_dead_remnants(parse_presets(preset.as_deref())?, dead_remnants)?,
                 quality: quality(spp)?,
                 labels,
+                climate: climate
+                    .as_deref()
+                    .map(ClimateSpec::parse)
+                    .transpose()
+                    .context("--climate")?,
                 quiet,
             })
         }

@@ -10,6 +10,7 @@
 
 pub mod bench;
 pub mod cli;
+pub mod climate;
 pub mod coco;
 pub mod dataset;
 pub mod label;

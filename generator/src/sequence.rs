@@ -3,6 +3,7 @@
 //! (`<plant>_<YYYY-MM-DD>_<HH-MM-SS>_Vis_SV_<angle>.png`, top `Vis_TV_90`)
 //! so they can be dropped into the daemon's watch folder, plus `truth.csv`.
 
+use crate::climate::{Climate, ClimateSpec};
 use crate::plant::{growth::PlantTraits, preset::Preset, Plant};
 use crate::render::{self, look::Look, Quality, Scene, Stage, View, Window};
 use crate::{png_io, rng, sampling};
@@ -38,6 +39,9 @@ pub struct SequenceArgs {
     pub quality: Quality,
     /// Also write panoptic labels into `labels/`.
     pub labels: bool,
+    /// Greenhouse air temperature driving development; `None`: every day
+    /// counts as one day of development (the presets' reference temperature).
+    pub climate: Option<ClimateSpec>,
     /// No progress bar.
     pub quiet: bool,
 }
@@ -151,30 +155,73 @@ pub fn run(args: &SequenceArgs) -> anyhow::Result<()> {
         ProgressStyle::with_template("{bar:40} {pos}/{len} frames  {per_sec}  eta {eta}")
             .expect("valid template"),
     );
-    let mut truth = String::from("plant,date,time,age_days,living_leaves,leaves_emerged,emergence_dates\n");
+    let climate = args.climate.map(|spec| {
+        // Sown at midnight, `start_age` days before the first imaging day;
+        // the log runs to the day after the last session.
+        let sown_days = args.start_age.round() as u32;
+        let span = sown_days + (args.days - 1) * args.interval + 2;
+        let sown = args.start.add_days(-i64::from(sown_days));
+        (
+            Climate::simulate(spec, rng::derive(args.seed, "climate", 0), sown, span),
+            sown_days,
+        )
+    });
+    let mut truth = String::from("plant,date,time,age_days,living_leaves,leaves_emerged,emergence_dates");
+    truth.push_str(if climate.is_some() {
+        ",degree_days,emergence_at,emergence_cd\n"
+    } else {
+        "\n"
+    });
     for p in 0..args.plants {
         let preset = sampling::pick_preset(&args.presets, args.seed, p).clone();
         let traits = PlantTraits::sample(&preset, rng::derive(args.seed, "plant", p));
         let id = plant_id(p, &preset.name);
         // One look per plant with the facility's calibration, small day-to-day drift.
         for d in 0..args.days {
-            let age = args.start_age + (d * args.interval) as f32;
             let date = args.start.add_days(i64::from(d * args.interval));
             // Plants go through the imager one after another each morning.
             let secs = 8 * 3600 + (p as u32 * 157 + d * 41) % (10 * 3600);
-            let emerged: Vec<String> = traits
-                .leaves
-                .iter()
-                .filter(|l| l.emergence_day <= age)
-                .map(|l| {
-                    let offset = (l.emergence_day - args.start_age).floor() as i64;
-                    args.start.add_days(offset).to_string()
-                })
-                .collect();
             let (h, m, s) = (secs / 3600, secs / 60 % 60, secs % 60);
+            let (age, emerged, thermal) = match &climate {
+                None => {
+                    let age = args.start_age + (d * args.interval) as f32;
+                    let emerged: Vec<String> = traits
+                        .leaves
+                        .iter()
+                        .filter(|l| l.emergence_day <= age)
+                        .map(|l| {
+                            let offset = (l.emergence_day - args.start_age).floor() as i64;
+                            args.start.add_days(offset).to_string()
+                        })
+                        .collect();
+                    (age, emerged, String::new())
+                }
+                Some((c, sown_days)) => {
+                    let minutes = f64::from((sown_days + d * args.interval) * 1440 + secs / 60)
+                        + f64::from(secs % 60) / 60.0;
+                    let age = c.development_days_at(minutes) as f32;
+                    let (mut dates, mut at, mut cd) = (Vec::new(), Vec::new(), Vec::new());
+                    for l in traits.leaves.iter().filter(|l| l.emergence_day <= age) {
+                        let when = c
+                            .minutes_of_development(f64::from(l.emergence_day))
+                            .expect("a leaf out by an imaging day emerged within the log");
+                        let (day, time) = c.clock(when);
+                        dates.push(day.to_string());
+                        at.push(format!("{day}T{time}"));
+                        cd.push(format!("{:.2}", c.degree_days_at(when)));
+                    }
+                    let extra = format!(
+                        ",{:.2},{},{}",
+                        c.degree_days_at(minutes),
+                        at.join(";"),
+                        cd.join(";")
+                    );
+                    (age, dates, extra)
+                }
+            };
             writeln!(
                 truth,
-                "{id},{date},{h:02}:{m:02}:{s:02},{age},{},{},{}",
+                "{id},{date},{h:02}:{m:02}:{s:02},{age},{},{},{}{thermal}",
                 traits.living_on(age),
                 traits.emerged_by(age),
                 emerged.join(";")
@@ -231,6 +278,9 @@ pub fn run(args: &SequenceArgs) -> anyhow::Result<()> {
     }
     bar.finish_and_clear();
     png_io::write_atomic(&args.out.join("truth.csv"), truth.as_bytes())?;
+    if let Some((c, _)) = &climate {
+        png_io::write_atomic(&args.out.join("climate.csv"), c.csv().as_bytes())?;
+    }
     if !args.quiet {
         eprintln!("wrote {} frames and truth.csv to {}", total, args.out.display());
     }

@@ -121,9 +121,23 @@ fn sequence_truth(
     seed: u32,
     start_age: u32,
 ) -> Vec<BTreeMap<String, String>> {
-    let dir = target.join(format!("e2e-cache/truth-p{plants}-d{days}-s{seed}-a{start_age}"));
+    sequence_truth_dir(target, gen, (plants, days, seed, start_age), None).1
+}
+
+/// As [`sequence_truth`], with the plants grown under `--climate` when one
+/// is given; returns the sequence's folder (climate.csv is there) too.
+fn sequence_truth_dir(
+    target: &Path,
+    gen: &Path,
+    (plants, days, seed, start_age): (u32, u32, u32, u32),
+    climate: Option<&str>,
+) -> (PathBuf, Vec<BTreeMap<String, String>>) {
+    let tag = climate.map_or(String::new(), |c| format!("-c{c}"));
+    let dir = target.join(format!(
+        "e2e-cache/truth-p{plants}-d{days}-s{seed}-a{start_age}{tag}"
+    ));
     let age = start_age.to_string();
-    let extra = [
+    let mut extra = vec![
         "--start-age",
         age.as_str(),
         "--views",
@@ -131,8 +145,12 @@ fn sequence_truth(
         "--frame-height",
         "64",
     ];
+    if let Some(c) = climate {
+        extra.extend(["--climate", c]);
+    }
     generate_sequence(gen, &dir, plants, days, seed, &extra);
-    read_csv(&dir.join("truth.csv"))
+    let truth = read_csv(&dir.join("truth.csv"));
+    (dir, truth)
 }
 
 /// Runs `phyllo-gen sequence` into `dir` (a partial render resumes) with `extra` options.
@@ -540,5 +558,145 @@ fn timeline_reads_lost_leaves_from_true_counts() {
     assert!(
         mae_on <= 1.5,
         "emergence date MAE {mae_on:.2} days from true counts"
+    );
+}
+
+/// The least-squares slope of `ys` on `xs`.
+fn slope(xs: &[f64], ys: &[f64]) -> f64 {
+    let n = xs.len() as f64;
+    let (mx, my) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
+    let sxy: f64 = xs.iter().zip(ys).map(|(x, y)| (x - mx) * (y - my)).sum();
+    let sxx: f64 = xs.iter().map(|x| (x - mx) * (x - mx)).sum();
+    sxy / sxx
+}
+
+/// Per plant of a `--climate` sequence's truth, the true (days, degree-days)
+/// per leaf over the leaves that emerged after its first imaging session.
+fn true_phyllochrons(truth: &[BTreeMap<String, String>]) -> BTreeMap<String, (f64, f64)> {
+    let mut out = BTreeMap::new();
+    let plants: std::collections::BTreeSet<&String> = truth.iter().map(|t| &t["plant"]).collect();
+    for p in plants {
+        let first = truth.iter().find(|t| &t["plant"] == p).unwrap();
+        let last = truth.iter().rev().find(|t| &t["plant"] == p).unwrap();
+        let first_at = format!("{}T{}", first["date"], first["time"]);
+        let leaves: Vec<(f64, f64, f64)> = last["emergence_at"]
+            .split(';')
+            .zip(last["emergence_cd"].split(';'))
+            .enumerate()
+            .filter(|(_, (at, _))| !at.is_empty() && *at > first_at.as_str())
+            .map(|(k, (at, cd))| ((k + 1) as f64, days_between(&first_at, at), cd.parse().unwrap()))
+            .collect();
+        if leaves.len() >= 3 {
+            let xs: Vec<f64> = leaves.iter().map(|l| l.0).collect();
+            let days: Vec<f64> = leaves.iter().map(|l| l.1).collect();
+            let cd: Vec<f64> = leaves.iter().map(|l| l.2).collect();
+            out.insert(p.clone(), (slope(&xs, &days), slope(&xs, &cd)));
+        }
+    }
+    out
+}
+
+/// The same plants grown in a cool and a warm greenhouse (`phyllo-gen
+/// sequence --climate`): fed their true living-leaf counts and the
+/// greenhouse's temperature log, phyllo's phyllochron in days per leaf
+/// follows the temperature, while its degree-days per leaf stay with the
+/// truth's, which the climate does not change.
+#[test]
+fn phyllochron_in_degree_days_holds_across_climates() {
+    let (target, phyllo, gen) = binaries();
+    let mut means = Vec::new();
+    // The same stretch of development in both (about 8 to 27 days at 25 °C):
+    // the warm plants grow twice as fast, so they are imaged younger and for
+    // fewer days, and neither reaches the leaf deaths living counts cannot date.
+    for (climate, start_age, days) in [("19", 14, 30), ("29", 7, 14)] {
+        let (dir, truth) = sequence_truth_dir(&target, &gen, (8, days, 13, start_age), Some(climate));
+        let store = tempfile::tempdir().unwrap();
+        let cfg = store.path().join("phyllo.toml");
+        std::fs::write(
+            &cfg,
+            format!(
+                "drop_dir = {:?}\ndatabase = {:?}\n",
+                store.path().join("drop"),
+                store.path().join("db.sqlite")
+            ),
+        )
+        .unwrap();
+        let mut obs = String::from("plant,timestamp,view,leaf_count\n");
+        for t in &truth {
+            for a in [0, 36, 72, 108, 144] {
+                obs += &format!(
+                    "{},{}T{},SV_{a},{}\n",
+                    t["plant"], t["date"], t["time"], t["living_leaves"]
+                );
+            }
+        }
+        let obs_path = store.path().join("counts.csv");
+        std::fs::write(&obs_path, obs).unwrap();
+        let plants_csv = store.path().join("plants.csv");
+        for args in [
+            vec!["import".into(), "-c".into(), cfg.clone(), obs_path.clone()],
+            vec!["import".into(), "-c".into(), cfg.clone(), dir.join("climate.csv")],
+            vec![
+                "export".into(),
+                "-c".into(),
+                cfg.clone(),
+                "--what".into(),
+                "plants".into(),
+                "--out".into(),
+                plants_csv.clone(),
+            ],
+        ] {
+            let st = Command::new(&phyllo).args(&args).output().unwrap();
+            assert!(
+                st.status.success(),
+                "{args:?}: {}",
+                String::from_utf8_lossy(&st.stderr)
+            );
+        }
+        let truth_values = true_phyllochrons(&truth);
+        let (mut days, mut cd, mut err) = ((0.0, 0.0), (0.0, 0.0), 0.0);
+        let mut n = 0.0;
+        for row in read_csv(&plants_csv) {
+            let (Some(&(true_days, true_cd)), Ok(got_days), Ok(got_cd)) = (
+                truth_values.get(&row["plant"]),
+                row["phyllochron_days"].parse::<f64>(),
+                row["phyllochron_cd"].parse::<f64>(),
+            ) else {
+                continue;
+            };
+            days = (days.0 + got_days, days.1 + true_days);
+            cd = (cd.0 + got_cd, cd.1 + true_cd);
+            err += (got_cd - true_cd).abs() / true_cd;
+            n += 1.0;
+        }
+        assert!(
+            n >= 4.0,
+            "climate {climate}: only {n} plants with both phyllochrons"
+        );
+        eprintln!(
+            "climate {climate} °C: {n} plants; days per leaf {:.2} (truth {:.2}), degree-days per leaf {:.1} \
+             (truth {:.1}), mean relative error {:.1} %",
+            days.0 / n,
+            days.1 / n,
+            cd.0 / n,
+            cd.1 / n,
+            100.0 * err / n
+        );
+        assert!(
+            err / n < 0.12,
+            "climate {climate}: degree-days per leaf off by {:.1} %",
+            100.0 * err / n
+        );
+        means.push((days.0 / n, cd.0 / n));
+    }
+    let (cool, warm) = (means[0], means[1]);
+    assert!(
+        cool.0 / warm.0 > 1.5,
+        "days per leaf should follow the temperature: {cool:?} {warm:?}"
+    );
+    let cd_ratio = cool.1 / warm.1;
+    assert!(
+        (0.85..1.18).contains(&cd_ratio),
+        "degree-days per leaf should not: {cool:?} {warm:?}"
     );
 }

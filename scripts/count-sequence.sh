@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Counts every frame of a rendered sequence with a model, once: the counts
+# (`phyllo count --json` lines) are kept beside the frames per model file,
+# DIR/counts-<sha256 of the model, 12 hex>.jsonl, so a rerun only counts
+# when frames were added. Prints the counts file's path.
+# Usage: scripts/count-sequence.sh SEQUENCE_DIR MODEL
+# Environment: THREADS [2]. Expects target/release/phyllo built.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+dir=$1
+model=$2
+counts=$dir/counts-$(sha256sum "$model" | cut -c1-12).jsonl
+frames=$(find "$dir" -maxdepth 1 -name '*.png' | wc -l)
+if [ ! -s "$counts" ] || [ "$(wc -l <"$counts")" -ne "$frames" ]; then
+  echo "counting $frames frames of $dir with $(basename "$model")" >&2
+  find "$dir" -maxdepth 1 -name '*.png' -print0 | sort -z |
+    xargs -0 "$root/target/release/phyllo" count --threads "${THREADS:-2}" --model "$model" --json >"$counts.part"
+  mv "$counts.part" "$counts"
+fi
+echo "$counts"
