@@ -94,6 +94,11 @@ impl ThermalClock {
     pub fn is_empty(&self) -> bool {
         self.times.is_empty()
     }
+
+    /// The base temperature (°C) above which it counts.
+    pub fn base(&self) -> f64 {
+        self.base
+    }
 }
 
 /// Degree-days per leaf: the least-squares slope of thermal time at

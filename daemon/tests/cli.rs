@@ -694,3 +694,66 @@ fn a_temperature_log_gives_degree_days_per_leaf() {
         .unwrap();
     assert!(thermal["difference"].as_f64().unwrap() < -20.0, "{thermal}");
 }
+
+/// `phyllo timeline --plot/--plots --degree-days`: the x axis in degree-days
+/// of the imported temperature log; refused, with the reason, without a log,
+/// without a plot to draw, and for a plant whose sessions the log does not
+/// cover.
+#[test]
+fn timelines_plot_against_degree_days() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cfg = two_genotypes(d);
+    let cfg = cfg.as_str();
+    let png = d.join("F-1.png");
+    let png_arg = png.to_str().unwrap();
+    let out = phyllo(&["timeline", "-c", cfg, "F-1", "--plot", png_arg, "--degree-days"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("has no temperature log"),
+        "{err}"
+    );
+    let out = phyllo(&["timeline", "-c", cfg, "F-1", "--degree-days"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("give --plot"), "{err}");
+
+    // Hourly from 1 to 15 November only: the last week of sessions is outside it.
+    let mut log = String::from("timestamp,temp_c\n");
+    for h in 0..(15 * 24) {
+        log += &format!("2026-11-{:02}T{:02}:00:00,22\n", 1 + h / 24, h % 24);
+    }
+    std::fs::write(d.join("log.csv"), &log).unwrap();
+    ok(&["import", "-c", cfg, d.join("log.csv").to_str().unwrap()]);
+    let out = phyllo(&["timeline", "-c", cfg, "F-1", "--plot", png_arg, "--degree-days"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("plant F-1: the temperature log does not cover"),
+        "{err}"
+    );
+    assert!(!png.exists(), "no half-drawn plot is left");
+
+    // The log runs on to the end of November: every session is covered.
+    let mut rest = String::from("timestamp,temp_c\n");
+    for h in (15 * 24)..(30 * 24) {
+        rest += &format!("2026-11-{:02}T{:02}:00:00,22\n", 1 + h / 24, h % 24);
+    }
+    std::fs::write(d.join("rest.csv"), &rest).unwrap();
+    ok(&["import", "-c", cfg, d.join("rest.csv").to_str().unwrap()]);
+    ok(&["timeline", "-c", cfg, "F-1", "--plot", png_arg, "--degree-days"]);
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (1000, 600));
+    let days_png = d.join("F-1-days.png");
+    ok(&["timeline", "-c", cfg, "F-1", "--plot", days_png.to_str().unwrap()]);
+    // Same data, another axis: the drawings differ.
+    assert_ne!(std::fs::read(&png).unwrap(), std::fs::read(&days_png).unwrap());
+    let plots = d.join("plots");
+    ok(&[
+        "timeline",
+        "-c",
+        cfg,
+        "--plots",
+        plots.to_str().unwrap(),
+        "--degree-days",
+    ]);
+    assert_eq!(std::fs::read_dir(&plots).unwrap().count(), 6);
+}

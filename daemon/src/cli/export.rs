@@ -68,7 +68,8 @@ fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Resul
     let timelines = store.plant_timelines()?;
     if config.export.plots {
         let plots = dir.join("plots");
-        index.plots = crate::sinks::plot::plot_all(&timelines, &plots)?.files;
+        index.plots =
+            crate::sinks::plot::plot_all(&timelines, &plots, crate::sinks::plot::TimeAxis::Days)?.files;
         println!("plots: {} plants → {}", index.plots.len(), plots.display());
     }
     let ranked = crate::review::rank(&timelines, None);

@@ -1,11 +1,12 @@
-//! `phyllo timeline --config FILE PLANT [--plot OUT.png] [--json]`, or
-//! `phyllo timeline --config FILE --plots DIR` for every plant's plot.
+//! `phyllo timeline --config FILE PLANT [--plot OUT.png [--degree-days]] [--json]`,
+//! or `phyllo timeline --config FILE --plots DIR [--degree-days]` for every plant's plot.
 
 use std::path::PathBuf;
 
 use anyhow::bail;
 
 use super::ConfigArg;
+use crate::sinks::plot::TimeAxis;
 use crate::store::{PlantTimeline, Store};
 
 /// Arguments of `phyllo timeline`.
@@ -22,6 +23,10 @@ pub struct Args {
     /// Draw every plant's timeline into DIR/<plant>.png.
     #[arg(long, value_name = "DIR", conflicts_with_all = ["plant", "plot", "json"])]
     plots: Option<PathBuf>,
+    /// Plot against the degree-days of the imported temperature log (above
+    /// `[timeline] base_temp_c`) instead of days.
+    #[arg(long)]
+    degree_days: bool,
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
@@ -31,8 +36,23 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let store = Store::open_read_only(&config.database)?;
+    let clock = if args.degree_days {
+        if args.plot.is_none() && args.plots.is_none() {
+            bail!("--degree-days sets a plot's axis: give --plot OUT.png or --plots DIR");
+        }
+        let Some(clock) = store.thermal_clock(config.timeline.base_temp_c)? else {
+            bail!(
+                "--degree-days: {} has no temperature log; import one first (phyllo import LOG.csv, columns timestamp,temp_c)",
+                config.database.display()
+            );
+        };
+        Some(clock)
+    } else {
+        None
+    };
+    let axis = clock.as_ref().map_or(TimeAxis::Days, TimeAxis::DegreeDays);
     if let Some(dir) = &args.plots {
-        let drawn = crate::sinks::plot::plot_all(&store.plant_timelines()?, dir)?;
+        let drawn = crate::sinks::plot::plot_all(&store.plant_timelines()?, dir, axis)?;
         eprintln!(
             "{} plots written to {} ({} plants without a counted session)",
             drawn.files.len(),
@@ -62,7 +82,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print!("{}", render(&t));
     }
     if let Some(out) = &args.plot {
-        crate::sinks::plot::plot(&t, out)?;
+        crate::sinks::plot::plot(&t, out, axis)?;
         eprintln!("plot written to {}", out.display());
     }
     Ok(())

@@ -13,6 +13,18 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::FontStyle;
 
 use crate::store::{parse_iso, PlantTimeline};
+use crate::thermal::ThermalClock;
+
+/// What a timeline plot's x axis measures from the plant's first session.
+#[derive(Debug, Clone, Copy)]
+pub enum TimeAxis<'a> {
+    /// Calendar days.
+    Days,
+    /// Degree-days of the greenhouse's temperature log: a plant whose leaves
+    /// appear at a steady rate per degree-day draws a straight staircase
+    /// however the weather went.
+    DegreeDays(&'a ThermalClock),
+}
 
 static FONT: Once = Once::new();
 
@@ -30,8 +42,8 @@ pub fn register_font() {
 /// session is in doubt, [`crate::review`]), leaves emerged (red steps), living leaves (green), emergence events
 /// (red ticks numbered with the leaf), and leaves read as lost (brown steps)
 /// once a plant has lost one.
-/// The x axis is days since the first session.
-pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
+/// The x axis is days, or degree-days, since the first session.
+pub fn plot(t: &PlantTimeline, out: &Path, axis: TimeAxis) -> anyhow::Result<()> {
     register_font();
     let first = t
         .sessions
@@ -39,7 +51,19 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
         .ok_or_else(|| anyhow!("plant {} has no sessions to plot", t.plant))?;
     let t0 = parse_iso(&first.start)?;
     let day = |s: &str| -> anyhow::Result<f64> {
-        Ok((parse_iso(s)? - t0).num_milliseconds() as f64 / 86_400_000.0)
+        let at = parse_iso(s)?;
+        match axis {
+            TimeAxis::Days => Ok((at - t0).num_milliseconds() as f64 / 86_400_000.0),
+            TimeAxis::DegreeDays(clock) => clock.between(t0, at).ok_or_else(|| {
+                anyhow!(
+                    "plant {}: the temperature log does not cover {} to {s} (outside it, or a hole of over {} h): \
+                     plot it in days",
+                    t.plant,
+                    first.start,
+                    crate::thermal::MAX_GAP_HOURS
+                )
+            }),
+        }
     };
     let mut xs = Vec::new();
     let mut ymax: f64 = 1.0;
@@ -52,7 +76,18 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
                 .fold(s.fused.max(s.leaves_emerged), f64::max),
         );
     }
+    // Every x before drawing starts: an error must not leave a half-drawn file.
+    let event_xs = t
+        .events
+        .iter()
+        .map(|(_, at, _)| day(at))
+        .collect::<anyhow::Result<Vec<f64>>>()?;
     let xmax = xs.last().cloned().unwrap_or(0.0).max(1.0);
+    // Half a day's margin either side, in the axis's own unit.
+    let pad = match axis {
+        TimeAxis::Days => 0.5,
+        TimeAxis::DegreeDays(_) => 0.02 * xmax,
+    };
     let root = BitMapBackend::new(out, (1000, 600)).into_drawing_area();
     let err = |e: DrawingAreaErrorKind<_>| anyhow!("drawing {}: {e:?}", out.display());
     root.fill(&WHITE).map_err(err)?;
@@ -66,11 +101,16 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
         .margin(15)
         .x_label_area_size(40)
         .y_label_area_size(50)
-        .build_cartesian_2d(-0.5..xmax + 0.5, 0.0..(ymax + 1.5).ceil())
+        .build_cartesian_2d(-pad..xmax + pad, 0.0..(ymax + 1.5).ceil())
         .map_err(err)?;
     chart
         .configure_mesh()
-        .x_desc(format!("days since {}", &first.start[..10]))
+        .x_desc(match axis {
+            TimeAxis::Days => format!("days since {}", &first.start[..10]),
+            TimeAxis::DegreeDays(c) => {
+                format!("degree-days above {} °C since {}", c.base(), &first.start[..10])
+            }
+        })
         .y_desc("leaves")
         .label_style(("sans-serif", 14))
         .draw()
@@ -163,8 +203,7 @@ pub fn plot(t: &PlantTimeline, out: &Path) -> anyhow::Result<()> {
             .label("leaves lost (dead)")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], brown.stroke_width(2)));
     }
-    for (leaf, at, _) in &t.events {
-        let x = day(at)?;
+    for ((leaf, _, _), &x) in t.events.iter().zip(&event_xs) {
         let y = *leaf as f64;
         chart
             .draw_series(std::iter::once(PathElement::new(
@@ -213,7 +252,7 @@ pub struct PlotFiles {
 }
 
 /// Draws every plant with a session into `dir`, one PNG per plant.
-pub fn plot_all(timelines: &[PlantTimeline], dir: &Path) -> anyhow::Result<PlotFiles> {
+pub fn plot_all(timelines: &[PlantTimeline], dir: &Path, axis: TimeAxis) -> anyhow::Result<PlotFiles> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut drawn = PlotFiles::default();
     let mut used = std::collections::HashSet::new();
@@ -229,7 +268,7 @@ pub fn plot_all(timelines: &[PlantTimeline], dir: &Path) -> anyhow::Result<PlotF
             n += 1;
             stem = format!("{}_{n}", file_stem(&t.plant));
         }
-        super::atomic::replace(&dir.join(format!("{stem}.png")), ".png", |tmp| plot(t, tmp))?;
+        super::atomic::replace(&dir.join(format!("{stem}.png")), ".png", |tmp| plot(t, tmp, axis))?;
         drawn.files.insert(t.plant.clone(), format!("{stem}.png"));
     }
     Ok(drawn)

@@ -325,6 +325,21 @@ impl Store {
         }))
     }
 
+    /// A thermal clock over the whole temperature log above `base_temp_c`;
+    /// `None` without a log.
+    pub fn thermal_clock(&self, base_temp_c: f64) -> anyhow::Result<Option<crate::thermal::ThermalClock>> {
+        let readings = self
+            .conn
+            .prepare("SELECT taken_at, temp_c FROM climate ORDER BY taken_at")?
+            .query_map([], |r| Ok((r.get::<_, String>(0)?, r.get::<_, f64>(1)?)))?
+            .map(|r| {
+                let (t, c) = r?;
+                Ok((super::parse_iso(&t)?, c))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        Ok((!readings.is_empty()).then(|| crate::thermal::ThermalClock::new(readings, base_temp_c)))
+    }
+
     /// All plant ids, sorted.
     pub fn plants(&self) -> anyhow::Result<Vec<String>> {
         let mut stmt = self.conn.prepare("SELECT name FROM plants ORDER BY name")?;
