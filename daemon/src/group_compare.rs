@@ -160,6 +160,7 @@ mod tests {
                 leaves_lost: 0.0,
             }],
             events: Vec::new(),
+            sites: Vec::new(),
         }
     }
 

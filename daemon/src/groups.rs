@@ -294,6 +294,7 @@ mod tests {
                 })
                 .collect(),
             events: Vec::new(),
+            sites: Vec::new(),
         }
     }
 

@@ -24,6 +24,7 @@ pub mod evaluation;
 pub mod group_compare;
 pub mod groups;
 pub mod import_journal;
+pub mod leaf_site;
 pub mod names;
 pub mod recount;
 pub mod review;

@@ -150,6 +150,7 @@ mod tests {
             phyllochron_cd: None,
             sessions,
             events: Vec::new(),
+            sites: Vec::new(),
         }
     }
 

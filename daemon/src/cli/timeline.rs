@@ -120,7 +120,21 @@ pub fn render(t: &PlantTimeline) -> String {
         s += "  (none yet: need a rise in the fitted count after the first session)\n";
     }
     for (leaf, at, seen) in &t.events {
-        s += &format!("  leaf {leaf:>2} emerged about {at} (first counted {seen})\n");
+        s += &format!("  leaf {leaf:>2} emerged about {at} (first counted {seen})");
+        if let Some(site) = t.sites.iter().find(|x| x.leaf == *leaf) {
+            s += &format!(
+                "; seen in {} at ({:.0}, {:.0}){}",
+                site.view,
+                site.centre[0],
+                site.centre[1],
+                if site.unmatched {
+                    ""
+                } else {
+                    ", the view's highest leaf"
+                }
+            );
+        }
+        s += "\n";
     }
     match (t.phyllochron_days, t.phyllochron_cd) {
         (Some(p), Some(cd)) => {

@@ -19,6 +19,7 @@ mod lock;
 pub mod migrations;
 mod queries;
 mod recount;
+mod site_rows;
 
 pub use lock::{DatabaseLock, RestoreLock, WritersLock};
 pub use recount::CountedImage;
@@ -34,7 +35,7 @@ use rusqlite::{params, Connection, OpenFlags, OptionalExtension, Transaction, Tr
 use crate::names::{ParsedName, View};
 use crate::timeline::{self, Obs, TimelineParams};
 
-pub use queries::{ClimateSummary, FeedRow, ImageCounts, LastImage, PlantTimeline, SessionRow};
+pub use queries::{ClimateSummary, FeedRow, ImageCounts, LastImage, LeafSiteRow, PlantTimeline, SessionRow};
 
 /// Formats a facility time the way the database and exports store it.
 pub fn iso(t: NaiveDateTime) -> String {
@@ -148,7 +149,9 @@ pub struct Store {
 /// The `[timeline]` settings a fit depends on, as stored in `meta`.
 fn timeline_settings(tl: &crate::config::TimelineConfig) -> String {
     format!(
-        "fusion={};session_gap_minutes={};living_window={};death_penalty={};base_temp_c={}",
+        // `leaf_sites`: where each new leaf emerged, added in schema 6; bumping
+        // it refits every plant once so older events get their sites.
+        "fusion={};session_gap_minutes={};living_window={};death_penalty={};base_temp_c={};leaf_sites=1",
         tl.fusion, tl.session_gap_minutes, tl.living_window, tl.death_penalty, tl.base_temp_c
     )
 }
@@ -839,18 +842,43 @@ fn recompute(
     now: &str,
     announce: Announce,
 ) -> anyhow::Result<Diff> {
-    let obs: Vec<Obs> = tx
+    let mut obs: Vec<Obs> = Vec::new();
+    // The images' leaf instances, kept as stored text until a site needs them.
+    let mut seen: Vec<site_rows::SeenRow> = Vec::new();
+    let rows = tx
         .prepare_cached(
-            "SELECT o.taken_at, o.view, o.leaf_count FROM observations o LEFT JOIN images i ON i.id = o.image_id
+            "SELECT o.taken_at, o.view, o.leaf_count, i.path, o.instances FROM observations o
+             LEFT JOIN images i ON i.id = o.image_id
              WHERE o.plant_id = ?1 AND (o.image_id IS NULL OR i.superseded = 0)",
         )?
-        .query_map([plant_id], |r| Ok((r.get::<_, String>(0)?, r.get::<_, String>(1)?, r.get::<_, i64>(2)?)))?
-        .map(|row| {
-            let (t, v, c) = row?;
-            Ok(Obs { taken_at: parse_iso(&t)?, view: View::parse(&v), count: c as f64 })
-        })
-        .collect::<anyhow::Result<_>>()?;
+        .query_map([plant_id], |r| {
+            Ok((
+                r.get::<_, String>(0)?,
+                r.get::<_, String>(1)?,
+                r.get::<_, i64>(2)?,
+                r.get::<_, Option<String>>(3)?,
+                r.get::<_, Option<String>>(4)?,
+            ))
+        })?
+        .collect::<Result<Vec<_>, _>>()?;
+    for (t, v, c, path, instances) in rows {
+        let taken_at = parse_iso(&t)?;
+        if let (Some(image), Some(instances)) = (path, instances) {
+            seen.push(site_rows::SeenRow {
+                taken_at,
+                view: v.clone(),
+                image,
+                instances,
+            });
+        }
+        obs.push(Obs {
+            taken_at,
+            view: View::parse(&v),
+            count: c as f64,
+        });
+    }
     let tl = timeline::compute(&obs, params);
+    let sites = site_rows::event_sites(&tl, &seen);
     let old: BTreeSet<u32> = tx
         .prepare_cached("SELECT leaf FROM events WHERE plant_id = ?1")?
         .query_map([plant_id], |r| r.get(0))?
@@ -888,11 +916,23 @@ fn recompute(
         ])?;
     }
     let mut new_leaves = Vec::new();
-    for e in &tl.events {
+    for (e, site) in tl.events.iter().zip(&sites) {
         tx.prepare_cached(
-            "INSERT INTO events (plant_id, leaf, emerged_at, seen_at) VALUES (?1, ?2, ?3, ?4)",
+            "INSERT INTO events (plant_id, leaf, emerged_at, seen_at, site_view, site_image, site_x, site_y, site_bbox, site_new)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
         )?
-        .execute(params![plant_id, e.leaf, iso(e.at), iso(e.seen_at)])?;
+        .execute(params![
+            plant_id,
+            e.leaf,
+            iso(e.at),
+            iso(e.seen_at),
+            site.as_ref().map(|s| &s.view),
+            site.as_ref().map(|s| &s.image),
+            site.as_ref().map(|s| f64::from(s.leaf.centre[0])),
+            site.as_ref().map(|s| f64::from(s.leaf.centre[1])),
+            site.as_ref().map(|s| serde_json::json!(s.leaf.bbox).to_string()),
+            site.as_ref().map(|s| s.unmatched)
+        ])?;
         if !old.contains(&e.leaf) {
             new_leaves.push(e.leaf);
         }

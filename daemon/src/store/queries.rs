@@ -92,6 +92,26 @@ pub struct PlantTimeline {
     pub sessions: Vec<SessionRow>,
     /// Emergence events: leaf, estimated time, first seen.
     pub events: Vec<(u32, String, String)>,
+    /// Where the leaves of `events` emerged, for those located ([`crate::leaf_site`]).
+    pub sites: Vec<LeafSiteRow>,
+}
+
+/// Where one new leaf emerged, as stored with its event.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LeafSiteRow {
+    /// Leaf number.
+    pub leaf: u32,
+    /// The view it was found in.
+    pub view: String,
+    /// The image, relative to the drop directory.
+    pub image: String,
+    /// The leaf instance's predicted centre, image pixels.
+    pub centre: [f64; 2],
+    /// Its bounding box `[x0, y0, x1, y1]`.
+    pub bbox: [u32; 4],
+    /// False where every instance had a partner the session before and the
+    /// view's highest was taken.
+    pub unmatched: bool,
 }
 
 /// What the temperature log holds ([`Store::climate_summary`]).
@@ -396,18 +416,34 @@ impl Store {
                 })
             })
             .collect::<anyhow::Result<_>>()?;
-        let mut stmt = self
-            .conn
-            .prepare("SELECT leaf, emerged_at, seen_at FROM events WHERE plant_id = ?1 ORDER BY leaf")?;
-        let events = stmt
-            .query_map([id], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))?
+        let mut stmt = self.conn.prepare(
+            "SELECT leaf, emerged_at, seen_at, site_view, site_image, site_x, site_y, site_bbox, site_new
+             FROM events WHERE plant_id = ?1 ORDER BY leaf",
+        )?;
+        let rows: Vec<((u32, String, String), Option<LeafSiteRow>)> = stmt
+            .query_map([id], |r| {
+                let site = match (r.get::<_, Option<String>>(3)?, r.get::<_, Option<String>>(4)?) {
+                    (Some(view), Some(image)) => Some(LeafSiteRow {
+                        leaf: r.get(0)?,
+                        view,
+                        image,
+                        centre: [r.get(5)?, r.get(6)?],
+                        bbox: serde_json::from_str(&r.get::<_, String>(7)?).unwrap_or_default(),
+                        unmatched: r.get(8)?,
+                    }),
+                    _ => None,
+                };
+                Ok(((r.get(0)?, r.get(1)?, r.get(2)?), site))
+            })?
             .collect::<Result<_, _>>()?;
+        let (events, sites): (Vec<_>, Vec<_>) = rows.into_iter().unzip();
         Ok(Some(PlantTimeline {
             plant: plant.to_string(),
             phyllochron_days,
             phyllochron_cd,
             sessions,
             events,
+            sites: sites.into_iter().flatten().collect(),
         }))
     }
 }

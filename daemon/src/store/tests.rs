@@ -446,7 +446,7 @@ fn opening_with_other_timeline_settings_refits_every_plant() {
         .query_row("SELECT value FROM meta WHERE key = 'timeline'", [], |r| r.get(0))
         .unwrap();
     assert!(
-        kept.contains("fusion=max-side;") && kept.ends_with("death_penalty=0;base_temp_c=10"),
+        kept.contains("fusion=max-side;") && kept.ends_with("death_penalty=0;base_temp_c=10;leaf_sites=1"),
         "{kept}"
     );
 }
@@ -574,4 +574,68 @@ fn a_temperature_log_gives_the_phyllochron_in_degree_days() {
     let mut h = open(&other);
     h.import("counts.csv", &rows, None).unwrap();
     assert_eq!(h.import_climate("holed.csv", &holed, None).unwrap(), 0);
+}
+
+/// A count whose leaf instances sit at `leaves` ((x, y) centres, 20 px boxes).
+fn count_at(leaves: &[(f32, f32)]) -> CountRecord {
+    let instances: Vec<serde_json::Value> = leaves
+        .iter()
+        .enumerate()
+        .map(|(i, &(x, y))| {
+            serde_json::json!({"id": i + 1, "class": 1, "area": 100, "score": 0.9, "centre": [x, y],
+                               "bbox": [x as u32 - 10, y as u32 - 10, x as u32 + 10, y as u32 + 10]})
+        })
+        .collect();
+    CountRecord {
+        instances: serde_json::Value::Array(instances),
+        ..count(leaves.len() as u32)
+    }
+}
+
+#[test]
+fn each_new_leaf_is_placed_where_it_appeared() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    let old = [(100.0, 400.0), (200.0, 380.0)];
+    // Day 1: one new leaf high up; day 2: two more, the newest the highest.
+    let days: [Vec<(f32, f32)>; 3] = [
+        old.to_vec(),
+        vec![old[0], old[1], (150.0, 200.0)],
+        vec![old[0], old[1], (150.0, 200.0), (260.0, 300.0), (140.0, 120.0)],
+    ];
+    for (d, leaves) in days.iter().enumerate() {
+        let f = facts(&format!("P1_{d}.png"), &format!("{d}"));
+        s.record(
+            &f,
+            Outcome::Counted(&name("P1", day(d as i64), View::Side(72)), &count_at(leaves)),
+        )
+        .unwrap();
+    }
+    let t = s.plant_timeline("P1").unwrap().unwrap();
+    let sites: Vec<(u32, [f64; 2], &str)> = t
+        .sites
+        .iter()
+        .map(|x| (x.leaf, x.centre, x.image.as_str()))
+        .collect();
+    assert_eq!(
+        sites,
+        vec![
+            (3, [150.0, 200.0], "P1_1.png"),
+            (4, [260.0, 300.0], "P1_2.png"),
+            (5, [140.0, 120.0], "P1_2.png")
+        ]
+    );
+    assert!(t.sites.iter().all(|x| x.view == "SV_72" && x.unmatched));
+    // The export carries them after the older columns.
+    let out = dir.path().join("events.csv");
+    crate::sinks::export::export(s.conn(), "events", None, &out).unwrap();
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        text.starts_with("plant,leaf,emerged_at,seen_at,phyllochron_days,site_view,site_image,site_x,site_y,site_bbox,site_new\r\n"),
+        "{text}"
+    );
+    assert!(
+        text.contains(",SV_72,P1_2.png,140,120,\"[130,110,150,130]\",1\r\n"),
+        "{text}"
+    );
 }
