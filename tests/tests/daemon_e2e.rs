@@ -420,6 +420,50 @@ fn daemon_counts_a_generated_sequence() {
     );
     let timeline = read_csv(&exports.join("timeline.csv"));
     let events = read_csv(&exports.join("events.csv"));
+    // Every leaf first counted after a plant's first session is placed on
+    // an image of that session, and `timeline --sites` draws it there.
+    let first_session = |plant: &str| {
+        sessions
+            .iter()
+            .filter(|r| r["plant"] == plant)
+            .map(|r| r["session_start"].clone())
+            .min()
+            .unwrap()
+    };
+    let later: Vec<_> = events
+        .iter()
+        .filter(|e| e["seen_at"] > first_session(&e["plant"]))
+        .collect();
+    for e in &later {
+        assert!(
+            e["site_view"].starts_with("SV_") && drop_dir.join(&e["site_image"]).exists(),
+            "{e:?}"
+        );
+        assert!(e["site_image"].contains(&e["seen_at"][..10]), "{e:?}");
+    }
+    if let Some(e) = later.first() {
+        let sites = dir.path().join("sites");
+        let out = Command::new(&phyllo)
+            .args(["timeline", "-c"])
+            .arg(&cfg)
+            .arg(&e["plant"])
+            .arg("--sites")
+            .arg(&sites)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let png = sites.join(format!(
+            "{}-leaf-{:02}.png",
+            e["plant"],
+            e["leaf"].parse::<u32>().unwrap()
+        ));
+        let img = image::open(&png).unwrap_or_else(|err| panic!("{}: {err}", png.display()));
+        assert!(img.width() > 0);
+    }
+    eprintln!(
+        "leaf sites: {} events after a plant's first session, every one placed",
+        later.len()
+    );
 
     // Compare with the generator's truth.
     let truth = read_csv(&frames_dir.join("truth.csv"));

@@ -1,4 +1,4 @@
-//! `phyllo timeline --config FILE PLANT [--plot OUT.png [--degree-days]] [--json]`,
+//! `phyllo timeline --config FILE PLANT [--plot OUT.png [--degree-days]] [--sites DIR] [--json]`,
 //! or `phyllo timeline --config FILE --plots DIR [--degree-days]` for every plant's plot.
 
 use std::path::PathBuf;
@@ -23,6 +23,10 @@ pub struct Args {
     /// Draw every plant's timeline into DIR/<plant>.png.
     #[arg(long, value_name = "DIR", conflicts_with_all = ["plant", "plot", "json"])]
     plots: Option<PathBuf>,
+    /// Draw where each new leaf emerged on the image it was found in, into
+    /// DIR/<plant>-leaf-<NN>.png (images read from the drop directory).
+    #[arg(long, value_name = "DIR", requires = "plant")]
+    sites: Option<PathBuf>,
     /// Plot against the degree-days of the imported temperature log (above
     /// `[timeline] base_temp_c`) instead of days.
     #[arg(long)]
@@ -84,6 +88,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.plot {
         crate::sinks::plot::plot(&t, out, axis)?;
         eprintln!("plot written to {}", out.display());
+    }
+    if let Some(dir) = &args.sites {
+        let written = crate::sinks::site_overlay::draw_sites(&t, &config.drop_dir, dir)?;
+        eprintln!(
+            "{} of {} new leaves drawn where they emerged into {}",
+            written.len(),
+            t.events.len(),
+            dir.display()
+        );
     }
     Ok(())
 }

@@ -14,4 +14,5 @@ pub mod group_report;
 pub mod index_html;
 pub mod plot;
 pub mod review_sheet;
+pub mod site_overlay;
 pub mod tail;

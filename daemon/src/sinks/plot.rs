@@ -275,7 +275,7 @@ pub fn plot_all(timelines: &[PlantTimeline], dir: &Path, axis: TimeAxis) -> anyh
 }
 
 /// A plant id as a file name: anything but letters, digits, `-`, `_` and `.` becomes `_`.
-fn file_stem(plant: &str) -> String {
+pub(crate) fn file_stem(plant: &str) -> String {
     let stem: String = plant
         .chars()
         .map(|c| {
