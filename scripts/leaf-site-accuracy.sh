@@ -30,17 +30,24 @@ frames=$(find "$work/drop" -maxdepth 1 -name '*.png' | wc -l)
 cat >"$work/phyllo.toml" <<TOML
 drop_dir = "$work/drop"
 database = "$work/db.sqlite"
+[inference]
 model = "${MODEL:-$root/models/phyllo.onnx}"
 TOML
 "$bin/phyllo" serve --config "$work/phyllo.toml" 2>"$work/serve.log" &
 serve=$!
 trap 'kill -TERM $serve 2>/dev/null || true' EXIT
 echo "counting $frames frames with phyllo serve (store in $work)" >&2
-python3 - "$work/db.sqlite" "$frames" <<'PY'
-import sqlite3, sys, time
-db, frames = sys.argv[1], int(sys.argv[2])
+python3 - "$work/db.sqlite" "$frames" "$serve" <<'PY'
+import os, sqlite3, sys, time
+db, frames, serve = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 while True:
     time.sleep(5)
+    try:
+        os.kill(serve, 0)
+    except OSError:
+        sys.exit("phyllo serve stopped early; see serve.log in the store's folder")
+    if not os.path.exists(db):
+        continue
     try:
         done = sqlite3.connect(db).execute("SELECT COUNT(*) FROM images WHERE state IN ('counted','failed','duplicate')").fetchone()[0]
     except sqlite3.Error:
@@ -52,4 +59,5 @@ kill -TERM $serve
 wait $serve || true
 trap - EXIT
 "$bin/phyllo" export --config "$work/phyllo.toml" --what events --out "$work/events.csv"
-"$root/models/.venv/bin/python" "$root/scripts/leaf_site_accuracy.py" --sequence "$dir" --events "$work/events.csv"
+"$root/models/.venv/bin/python" "$root/scripts/leaf_site_accuracy.py" --sequence "$dir" --events "$work/events.csv" \
+  --db "$work/db.sqlite"

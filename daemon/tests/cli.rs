@@ -151,7 +151,7 @@ fn operator_commands() {
     ]);
     let text = std::fs::read_to_string(&events).unwrap();
     assert!(
-        text.starts_with("plant,leaf,emerged_at,seen_at,phyllochron_days,site_view,site_image,site_x,site_y,site_bbox,site_new\r\n"),
+        text.starts_with("plant,leaf,emerged_at,seen_at,phyllochron_days,site_view,site_image,site_x,site_y,site_bbox,site_area\r\n"),
         "{text}"
     );
     assert_eq!(text.lines().count(), 1 + 6, "{text}");

@@ -136,15 +136,8 @@ pub fn render(t: &PlantTimeline) -> String {
         s += &format!("  leaf {leaf:>2} emerged about {at} (first counted {seen})");
         if let Some(site) = t.sites.iter().find(|x| x.leaf == *leaf) {
             s += &format!(
-                "; seen in {} at ({:.0}, {:.0}){}",
-                site.view,
-                site.centre[0],
-                site.centre[1],
-                if site.unmatched {
-                    ""
-                } else {
-                    ", the view's highest leaf"
-                }
+                "; seen in {} at ({:.0}, {:.0}), {} px",
+                site.view, site.centre[0], site.centre[1], site.area
             );
         }
         s += "\n";

@@ -25,12 +25,37 @@ pub fn replace<T>(
         .tempfile_in(dir)
         .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
     let value = write(tmp.path())?;
+    // A temporary file is made private (0600); the finished file gets the
+    // mode any new file would, so the breeders in the service's group can
+    // read the exports (the units' UMask=0027).
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(
+            tmp.path(),
+            std::fs::Permissions::from_mode(0o666 & !process_umask()),
+        )
+        .with_context(|| format!("setting the mode of {}", tmp.path().display()))?;
+    }
     std::fs::File::open(tmp.path())
         .and_then(|f| f.sync_all())
         .with_context(|| format!("syncing {}", tmp.path().display()))?;
     tmp.persist(out)
         .with_context(|| format!("renaming into {}", out.display()))?;
     Ok(value)
+}
+
+/// The process's file-creation mask, read from `/proc/self/status` (Linux
+/// 4.7+): setting it to read it back would race other threads making files.
+/// 0o022 where it cannot be read.
+fn process_umask() -> u32 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find_map(|l| l.strip_prefix("Umask:"))
+                .and_then(|v| u32::from_str_radix(v.trim(), 8).ok())
+        })
+        .unwrap_or(0o022)
 }
 
 /// Makes a rename or deletion in `dir` durable.
@@ -43,6 +68,23 @@ pub fn sync_dir(dir: &Path) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_finished_file_has_the_mode_the_umask_gives_not_a_temporary_files() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("plants.csv");
+        replace(&out, ".csv", |p| Ok(std::fs::write(p, "a,b\n")?)).unwrap();
+        let mode = std::fs::metadata(&out).unwrap().permissions().mode() & 0o777;
+        // What a plain new file gets under the same umask.
+        let plain = dir.path().join("plain");
+        std::fs::write(&plain, "x").unwrap();
+        assert_eq!(
+            mode,
+            std::fs::metadata(&plain).unwrap().permissions().mode() & 0o777
+        );
+        assert_eq!(mode, 0o666 & !process_umask());
+    }
 
     #[test]
     fn the_old_file_stays_until_the_new_one_is_whole() {

@@ -47,7 +47,7 @@ fn query(kind: &str) -> anyhow::Result<&'static str> {
         // One row per leaf emergence event, and where the leaf was first seen (crate::leaf_site).
         "events" => {
             "SELECT p.name AS plant, e.leaf, e.emerged_at, e.seen_at, p.phyllochron_days,
-                    e.site_view, e.site_image, e.site_x, e.site_y, e.site_bbox, e.site_new
+                    e.site_view, e.site_image, e.site_x, e.site_y, e.site_bbox, e.site_area
              FROM events e JOIN plants p ON p.id = e.plant_id
              WHERE ?1 IS NULL OR e.emerged_at >= ?1
              ORDER BY p.name, e.leaf"

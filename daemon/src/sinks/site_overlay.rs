@@ -1,18 +1,22 @@
 //! `phyllo timeline PLANT --sites DIR`: where each new leaf emerged, drawn
 //! on the image it was found in: a red box round the leaf instance and a
-//! cross on its predicted centre, one PNG per located leaf
-//! (`<plant>-leaf-<NN>.png`).
+//! cross on its predicted centre, on a square of the frame around it
+//! (a third of the frame's height at least) enlarged to at least
+//! [`MIN_SIDE`] pixels, so a seedling's first leaves are not specks; one
+//! PNG per located leaf (`<plant>-leaf-<NN>.png`).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use image::Rgb;
+use image::{imageops, Rgb, RgbImage};
 use imageproc::drawing::{draw_hollow_rect_mut, draw_line_segment_mut};
 use imageproc::rect::Rect;
 
 use crate::store::PlantTimeline;
 
 const RED: Rgb<u8> = Rgb([230, 20, 20]);
+/// Smallest side of a drawn square, pixels.
+pub const MIN_SIDE: u32 = 480;
 
 /// Draws every located leaf of `t` from the images under `drop_dir` into
 /// `dir`; returns the files written. A missing or unreadable image is an
@@ -22,25 +26,10 @@ pub fn draw_sites(t: &PlantTimeline, drop_dir: &Path, dir: &Path) -> anyhow::Res
     let mut written = Vec::new();
     for site in &t.sites {
         let src = drop_dir.join(&site.image);
-        let mut img = image::open(&src)
+        let full = image::open(&src)
             .with_context(|| format!("leaf {} of {}: reading {}", site.leaf, t.plant, src.display()))?
             .to_rgb8();
-        let [x0, y0, x1, y1] = site.bbox;
-        // A few pixels of margin, so the box does not hide the leaf's edge.
-        let pad = (img.width().max(img.height()) / 400).max(2);
-        for k in 0..3 {
-            let (x, y) = (x0.saturating_sub(pad + k), y0.saturating_sub(pad + k));
-            let (w, h) = (x1 - x0 + 2 * (pad + k), y1 - y0 + 2 * (pad + k));
-            draw_hollow_rect_mut(
-                &mut img,
-                Rect::at(x as i32, y as i32).of_size(w.max(1), h.max(1)),
-                RED,
-            );
-        }
-        let (cx, cy) = (site.centre[0] as f32, site.centre[1] as f32);
-        let a = (pad * 3) as f32;
-        draw_line_segment_mut(&mut img, (cx - a, cy), (cx + a, cy), RED);
-        draw_line_segment_mut(&mut img, (cx, cy - a), (cx, cy + a), RED);
+        let img = draw(&full, site.bbox, site.centre);
         let out = dir.join(format!(
             "{}-leaf-{:02}.png",
             super::plot::file_stem(&t.plant),
@@ -53,4 +42,59 @@ pub fn draw_sites(t: &PlantTimeline, drop_dir: &Path, dir: &Path) -> anyhow::Res
         written.push(out);
     }
     Ok(written)
+}
+
+/// The square around a leaf's box `bbox` (centre `centre`) cut from `full`,
+/// enlarged to at least [`MIN_SIDE`], with the box and centre drawn.
+fn draw(full: &RgbImage, bbox: [u32; 4], centre: [f64; 2]) -> RgbImage {
+    let (w, h) = full.dimensions();
+    let [x0, y0, x1, y1] = bbox;
+    let side = (h / 3).max(6 * (x1 - x0).max(y1 - y0)).min(w.min(h)).max(1);
+    let cx = ((x0 + x1) / 2).saturating_sub(side / 2).min(w - side);
+    let cy = ((y0 + y1) / 2).saturating_sub(side / 2).min(h - side);
+    let crop = imageops::crop_imm(full, cx, cy, side, side).to_image();
+    let scale = (f64::from(MIN_SIDE) / f64::from(side)).max(1.0);
+    let out_side = (f64::from(side) * scale).round() as u32;
+    let mut img = imageops::resize(&crop, out_side, out_side, imageops::FilterType::Triangle);
+    let at = |v: u32, o: u32| (f64::from(v.saturating_sub(o)) * scale) as i32;
+    // A few pixels of margin, so the box does not hide the leaf's edge.
+    let pad = 3;
+    for k in 0..3 {
+        let (bx, by) = (at(x0, cx) - pad - k, at(y0, cy) - pad - k);
+        let (bw, bh) = (
+            at(x1, cx) - at(x0, cx) + 2 * (pad + k),
+            at(y1, cy) - at(y0, cy) + 2 * (pad + k),
+        );
+        draw_hollow_rect_mut(
+            &mut img,
+            Rect::at(bx, by).of_size(bw.max(1) as u32, bh.max(1) as u32),
+            RED,
+        );
+    }
+    let (px, py) = (
+        ((centre[0] - f64::from(cx)) * scale) as f32,
+        ((centre[1] - f64::from(cy)) * scale) as f32,
+    );
+    let a = 8.0;
+    draw_line_segment_mut(&mut img, (px - a, py), (px + a, py), RED);
+    draw_line_segment_mut(&mut img, (px, py - a), (px, py + a), RED);
+    img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_small_leaf_is_drawn_enlarged_on_a_square_round_it() {
+        let full = RgbImage::from_pixel(614, 514, Rgb([255, 255, 255]));
+        let img = draw(&full, [300, 350, 310, 380], [305.0, 365.0]);
+        // 514 / 3 = 171 px of frame, enlarged to at least 480.
+        assert_eq!(img.width(), img.height());
+        assert!(img.width() >= MIN_SIDE, "{}", img.width());
+        assert!(img.pixels().any(|p| *p == RED));
+        // A box near the frame's corner keeps its square inside the frame.
+        let corner = draw(&full, [600, 500, 612, 512], [606.0, 506.0]);
+        assert_eq!(corner.width(), corner.height());
+    }
 }

@@ -146,14 +146,14 @@ CREATE TABLE climate (
 ALTER TABLE plants ADD COLUMN phyllochron_cd REAL;  -- °Cd per leaf; NULL without a log covering its leaves
 "#,
     // 6: where each new leaf emerged (crate::leaf_site): the leaf instance, in
-    // the session that first counted it, that the session before did not have.
+    // the session that first counted it, taken for the new leaf.
     r#"
 ALTER TABLE events ADD COLUMN site_view TEXT;    -- the view it was found in; NULL without images' instances
 ALTER TABLE events ADD COLUMN site_image TEXT;   -- that image, relative to drop_dir
 ALTER TABLE events ADD COLUMN site_x REAL;       -- the leaf instance's predicted centre, image pixels
 ALTER TABLE events ADD COLUMN site_y REAL;
 ALTER TABLE events ADD COLUMN site_bbox TEXT;    -- JSON [x0, y0, x1, y1]
-ALTER TABLE events ADD COLUMN site_new INTEGER;  -- 1: an instance with no partner the session before; 0: the view's highest
+ALTER TABLE events ADD COLUMN site_area INTEGER; -- its area, image pixels
 "#,
 ];
 

@@ -918,7 +918,7 @@ fn recompute(
     let mut new_leaves = Vec::new();
     for (e, site) in tl.events.iter().zip(&sites) {
         tx.prepare_cached(
-            "INSERT INTO events (plant_id, leaf, emerged_at, seen_at, site_view, site_image, site_x, site_y, site_bbox, site_new)
+            "INSERT INTO events (plant_id, leaf, emerged_at, seen_at, site_view, site_image, site_x, site_y, site_bbox, site_area)
              VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
         )?
         .execute(params![
@@ -931,7 +931,7 @@ fn recompute(
             site.as_ref().map(|s| f64::from(s.leaf.centre[0])),
             site.as_ref().map(|s| f64::from(s.leaf.centre[1])),
             site.as_ref().map(|s| serde_json::json!(s.leaf.bbox).to_string()),
-            site.as_ref().map(|s| s.unmatched)
+            site.as_ref().map(|s| s.leaf.area as i64)
         ])?;
         if !old.contains(&e.leaf) {
             new_leaves.push(e.leaf);
@@ -946,9 +946,13 @@ fn recompute(
                     leaves_emerged: Some(e.leaf as f64),
                     new_leaves: vec![e.leaf],
                     message: Some(format!(
-                        "leaf {} emerged about {}",
+                        "leaf {} emerged about {}{}",
                         e.leaf,
-                        e.at.format("%Y-%m-%d %H:%M")
+                        e.at.format("%Y-%m-%d %H:%M"),
+                        site.as_ref().map_or(String::new(), |s| format!(
+                            ", seen in {} at ({:.0}, {:.0})",
+                            s.view, s.leaf.centre[0], s.leaf.centre[1]
+                        ))
                     )),
                     ..FeedRow::default()
                 },

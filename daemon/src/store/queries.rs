@@ -109,9 +109,8 @@ pub struct LeafSiteRow {
     pub centre: [f64; 2],
     /// Its bounding box `[x0, y0, x1, y1]`.
     pub bbox: [u32; 4],
-    /// False where every instance had a partner the session before and the
-    /// view's highest was taken.
-    pub unmatched: bool,
+    /// Its area, image pixels.
+    pub area: i64,
 }
 
 /// What the temperature log holds ([`Store::climate_summary`]).
@@ -417,7 +416,7 @@ impl Store {
             })
             .collect::<anyhow::Result<_>>()?;
         let mut stmt = self.conn.prepare(
-            "SELECT leaf, emerged_at, seen_at, site_view, site_image, site_x, site_y, site_bbox, site_new
+            "SELECT leaf, emerged_at, seen_at, site_view, site_image, site_x, site_y, site_bbox, site_area
              FROM events WHERE plant_id = ?1 ORDER BY leaf",
         )?;
         let rows: Vec<((u32, String, String), Option<LeafSiteRow>)> = stmt
@@ -429,7 +428,7 @@ impl Store {
                         image,
                         centre: [r.get(5)?, r.get(6)?],
                         bbox: serde_json::from_str(&r.get::<_, String>(7)?).unwrap_or_default(),
-                        unmatched: r.get(8)?,
+                        area: r.get(8)?,
                     }),
                     _ => None,
                 };

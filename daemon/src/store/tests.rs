@@ -576,13 +576,14 @@ fn a_temperature_log_gives_the_phyllochron_in_degree_days() {
     assert_eq!(h.import_climate("holed.csv", &holed, None).unwrap(), 0);
 }
 
-/// A count whose leaf instances sit at `leaves` ((x, y) centres, 20 px boxes).
-fn count_at(leaves: &[(f32, f32)]) -> CountRecord {
+/// A count whose leaf instances sit at `leaves` ((x, y) centres, 20 px
+/// boxes, areas), every one of them.
+fn count_at(leaves: &[(f32, f32, u64)]) -> CountRecord {
     let instances: Vec<serde_json::Value> = leaves
         .iter()
         .enumerate()
-        .map(|(i, &(x, y))| {
-            serde_json::json!({"id": i + 1, "class": 1, "area": 100, "score": 0.9, "centre": [x, y],
+        .map(|(i, &(x, y, area))| {
+            serde_json::json!({"id": i + 1, "class": 1, "area": area, "score": 0.9, "centre": [x, y],
                                "bbox": [x as u32 - 10, y as u32 - 10, x as u32 + 10, y as u32 + 10]})
         })
         .collect();
@@ -596,12 +597,19 @@ fn count_at(leaves: &[(f32, f32)]) -> CountRecord {
 fn each_new_leaf_is_placed_where_it_appeared() {
     let dir = tempfile::tempdir().unwrap();
     let mut s = open(&dir);
-    let old = [(100.0, 400.0), (200.0, 380.0)];
-    // Day 1: one new leaf high up; day 2: two more, the newest the highest.
-    let days: [Vec<(f32, f32)>; 3] = [
+    let old = [(100.0, 400.0, 900), (200.0, 380.0, 800)];
+    // Day 1: one new leaf, its tip only; day 2: it has grown, and two more
+    // came out, the newest the smaller.
+    let days: [Vec<(f32, f32, u64)>; 3] = [
         old.to_vec(),
-        vec![old[0], old[1], (150.0, 200.0)],
-        vec![old[0], old[1], (150.0, 200.0), (260.0, 300.0), (140.0, 120.0)],
+        vec![old[0], old[1], (150.0, 200.0, 60)],
+        vec![
+            old[0],
+            old[1],
+            (150.0, 200.0, 400),
+            (260.0, 300.0, 90),
+            (140.0, 120.0, 30),
+        ],
     ];
     for (d, leaves) in days.iter().enumerate() {
         let f = facts(&format!("P1_{d}.png"), &format!("{d}"));
@@ -625,17 +633,31 @@ fn each_new_leaf_is_placed_where_it_appeared() {
             (5, [140.0, 120.0], "P1_2.png")
         ]
     );
-    assert!(t.sites.iter().all(|x| x.view == "SV_72" && x.unmatched));
+    assert!(t.sites.iter().all(|x| x.view == "SV_72"));
+    assert_eq!(
+        t.sites.iter().map(|x| x.area).collect::<Vec<_>>(),
+        vec![60, 90, 30]
+    );
+    // `phyllo tail` says where, too.
+    let feed = s.feed_after(0, None, 100).unwrap();
+    assert!(
+        feed.iter().any(|r| r
+            .message
+            .as_deref()
+            .is_some_and(|m| m.starts_with("leaf 5 emerged about 2018-04-2")
+                && m.ends_with(", seen in SV_72 at (140, 120)"))),
+        "{feed:?}"
+    );
     // The export carries them after the older columns.
     let out = dir.path().join("events.csv");
     crate::sinks::export::export(s.conn(), "events", None, &out).unwrap();
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(
-        text.starts_with("plant,leaf,emerged_at,seen_at,phyllochron_days,site_view,site_image,site_x,site_y,site_bbox,site_new\r\n"),
+        text.starts_with("plant,leaf,emerged_at,seen_at,phyllochron_days,site_view,site_image,site_x,site_y,site_bbox,site_area\r\n"),
         "{text}"
     );
     assert!(
-        text.contains(",SV_72,P1_2.png,140,120,\"[130,110,150,130]\",1\r\n"),
+        text.contains(",SV_72,P1_2.png,140,120,\"[130,110,150,130]\",30\r\n"),
         "{text}"
     );
 }
