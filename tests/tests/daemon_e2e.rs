@@ -170,9 +170,9 @@ fn generate_sequence(gen: &Path, dir: &Path, plants: u32, days: u32, seed: u32, 
     );
 }
 
-/// Imports `obs` (a `phyllo import` CSV) into a fresh store whose config ends
-/// with `settings`, and returns its exported emergence events.
-fn import_and_export_events(phyllo: &Path, settings: &str, obs: &str) -> Vec<BTreeMap<String, String>> {
+/// A fresh store in a temporary folder, its config ending with `settings`:
+/// (the folder, the config's path).
+fn fresh_store(settings: &str) -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("phyllo.toml");
     std::fs::write(
@@ -184,6 +184,28 @@ fn import_and_export_events(phyllo: &Path, settings: &str, obs: &str) -> Vec<BTr
         ),
     )
     .unwrap();
+    (dir, cfg)
+}
+
+/// The truth's living-leaf counts as a `phyllo import` CSV, the same count
+/// in each of the five side views: the model taken out.
+fn true_counts_in_five_views(truth: &[BTreeMap<String, String>]) -> String {
+    let mut obs = String::from("plant,timestamp,view,leaf_count\n");
+    for t in truth {
+        for a in [0, 36, 72, 108, 144] {
+            obs += &format!(
+                "{},{}T{},SV_{a},{}\n",
+                t["plant"], t["date"], t["time"], t["living_leaves"]
+            );
+        }
+    }
+    obs
+}
+
+/// Imports `obs` (a `phyllo import` CSV) into a fresh store whose config ends
+/// with `settings`, and returns its exported emergence events.
+fn import_and_export_events(phyllo: &Path, settings: &str, obs: &str) -> Vec<BTreeMap<String, String>> {
+    let (dir, cfg) = fresh_store(settings);
     let obs_path = dir.path().join("counts.csv");
     std::fs::write(&obs_path, obs).unwrap();
     let events_csv = dir.path().join("events.csv");
@@ -566,15 +588,7 @@ fn timeline_reads_lost_leaves_from_true_counts() {
         lost_days > 0,
         "the sequence should reach the plants' first deaths"
     );
-    let mut obs = String::from("plant,timestamp,view,leaf_count\n");
-    for t in &truth {
-        for a in [0, 36, 72, 108, 144] {
-            obs += &format!(
-                "{},{}T{},SV_{a},{}\n",
-                t["plant"], t["date"], t["time"], t["living_leaves"]
-            );
-        }
-    }
+    let obs = true_counts_in_five_views(&truth);
     let mut results = Vec::new();
     for (label, settings) in [
         ("death_penalty 0", "[timeline]\ndeath_penalty = 0.0\n"),
@@ -654,28 +668,9 @@ fn phyllochron_in_degree_days_holds_across_climates() {
     // fewer days, and neither reaches the leaf deaths living counts cannot date.
     for (climate, start_age, days) in [("19", 14, 30), ("29", 7, 14)] {
         let (dir, truth) = sequence_truth_dir(&target, &gen, (8, days, 13, start_age), Some(climate));
-        let store = tempfile::tempdir().unwrap();
-        let cfg = store.path().join("phyllo.toml");
-        std::fs::write(
-            &cfg,
-            format!(
-                "drop_dir = {:?}\ndatabase = {:?}\n",
-                store.path().join("drop"),
-                store.path().join("db.sqlite")
-            ),
-        )
-        .unwrap();
-        let mut obs = String::from("plant,timestamp,view,leaf_count\n");
-        for t in &truth {
-            for a in [0, 36, 72, 108, 144] {
-                obs += &format!(
-                    "{},{}T{},SV_{a},{}\n",
-                    t["plant"], t["date"], t["time"], t["living_leaves"]
-                );
-            }
-        }
+        let (store, cfg) = fresh_store("");
         let obs_path = store.path().join("counts.csv");
-        std::fs::write(&obs_path, obs).unwrap();
+        std::fs::write(&obs_path, true_counts_in_five_views(&truth)).unwrap();
         let plants_csv = store.path().join("plants.csv");
         for args in [
             vec!["import".into(), "-c".into(), cfg.clone(), obs_path.clone()],
