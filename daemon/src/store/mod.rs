@@ -151,7 +151,7 @@ fn timeline_settings(tl: &crate::config::TimelineConfig) -> String {
     format!(
         // `leaf_sites`: where each new leaf emerged, added in schema 6; bumping
         // it refits every plant once so older events get their sites.
-        "fusion={};session_gap_minutes={};living_window={};death_penalty={};base_temp_c={};leaf_sites=1",
+        "fusion={};session_gap_minutes={};living_window={};death_penalty={};base_temp_c={};leaf_sites=2",
         tl.fusion, tl.session_gap_minutes, tl.living_window, tl.death_penalty, tl.base_temp_c
     )
 }
