@@ -463,6 +463,16 @@ fn daemon_counts_a_generated_sequence() {
         );
         assert!(e["site_image"].contains(&e["seen_at"][..10]), "{e:?}");
     }
+    if !later.is_empty() {
+        // The nightly export drew each plant's newest placed leaf and links it.
+        let drawn = std::fs::read_dir(exports.join("sites")).unwrap().count();
+        assert!(drawn >= 1);
+        let page = std::fs::read_to_string(exports.join("index.html")).unwrap();
+        assert!(
+            page.contains("<th>newest leaf seen</th>") && page.contains("href=\"sites/"),
+            "{page}"
+        );
+    }
     if let Some(e) = later.first() {
         let sites = dir.path().join("sites");
         let out = Command::new(&phyllo)

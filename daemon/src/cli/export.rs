@@ -41,8 +41,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// What the nightly timer runs: every table into `[export] dir`, every
-/// plant's plot, the group summaries when configured, the review sheet of
-/// the days most in doubt, and `index.html` linking them all.
+/// plant's plot and where its newest leaf emerged, the group summaries when
+/// configured, the review sheet of the days most in doubt, and `index.html`
+/// linking them all.
 fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Result<()> {
     let dir = config.export_dir();
     let mut index = index_html::Index {
@@ -71,6 +72,16 @@ fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Resul
         index.plots =
             crate::sinks::plot::plot_all(&timelines, &plots, crate::sinks::plot::TimeAxis::Days)?.files;
         println!("plots: {} plants → {}", index.plots.len(), plots.display());
+        let sites = dir.join("sites");
+        let newest = crate::sinks::site_overlay::draw_newest(&timelines, &config.drop_dir, &sites)?;
+        println!(
+            "sites: the newest placed leaf of {} plants → {} ({} drawn now; {} whose image has left the drop directory)",
+            newest.files.len(),
+            sites.display(),
+            newest.drawn,
+            newest.gone
+        );
+        index.sites = newest.files;
     }
     let ranked = crate::review::rank(&timelines, None);
     let items = review_sheet::items(store, &ranked, crate::review::NIGHTLY)?;

@@ -21,6 +21,8 @@ pub struct Index {
     pub plants: (Vec<String>, Vec<Vec<String>>),
     /// Plant id → its plot's file name under `plots/`.
     pub plots: BTreeMap<String, String>,
+    /// Plant id → (its newest placed leaf, that leaf's picture under `sites/`).
+    pub sites: BTreeMap<String, (u32, String)>,
     /// The `groups.csv` table, when groups are configured.
     pub groups: Option<(Vec<String>, Vec<Vec<String>>)>,
     /// The groups' plot file name, when drawn.
@@ -117,7 +119,29 @@ pub fn render(idx: &Index) -> String {
     }
     h.push_str("<h2>Plants</h2>\n");
     let (head, rows) = &idx.plants;
-    table(&mut h, head, rows, plant_linked);
+    if idx.sites.is_empty() {
+        table(&mut h, head, rows, plant_linked);
+    } else {
+        // One more column: the newest leaf, linked to where it emerged.
+        let mut head = head.clone();
+        head.push("newest leaf seen".into());
+        let n = head.len() - 1;
+        let rows: Vec<Vec<String>> = rows
+            .iter()
+            .map(|r| {
+                let mut r = r.clone();
+                r.push(r.first().cloned().unwrap_or_default());
+                r
+            })
+            .collect();
+        table(&mut h, &head, &rows, |col, cell| {
+            match (col == n, idx.sites.get(cell)) {
+                (true, Some((leaf, png))) => format!("<a href=\"sites/{}\">leaf {leaf}</a>", attr(png)),
+                (true, None) => String::new(),
+                _ => plant_linked(col, cell),
+            }
+        });
+    }
     h.push_str("</body>\n</html>\n");
     h
 }
@@ -159,6 +183,7 @@ mod tests {
                 vec![vec!["A-1".into(), "7".into()], vec![evil.into(), "3".into()]],
             ),
             plots: BTreeMap::from([("A-1".to_string(), "A-1.png".to_string())]),
+            sites: BTreeMap::from([("A-1".to_string(), (7, "A-1-leaf-07-0a1b2c3d.png".to_string()))]),
             groups: Some((vec!["genotype".into()], vec![vec!["<b>".into()]])),
             groups_plot: Some("groups.png".into()),
             unmatched: 1,
@@ -182,6 +207,13 @@ mod tests {
         };
         let page = render(&idx);
         assert!(page.contains("<a href=\"plots/A-1.png\">A-1</a>"), "{page}");
+        // The newest leaf links to where it emerged; a plant with none gets an empty cell.
+        assert!(
+            page.contains("<th>newest leaf seen</th>")
+                && page.contains("<td><a href=\"sites/A-1-leaf-07-0a1b2c3d.png\">leaf 7</a></td>")
+                && page.contains("<td>3</td><td></td></tr>"),
+            "{page}"
+        );
         assert!(
             !page.contains("<script>") && page.contains("&lt;script&gt;"),
             "{page}"

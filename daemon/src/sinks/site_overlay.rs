@@ -44,6 +44,62 @@ pub fn draw_sites(t: &PlantTimeline, drop_dir: &Path, dir: &Path) -> anyhow::Res
     Ok(written)
 }
 
+/// What [`draw_newest`] did.
+#[derive(Debug, Default)]
+pub struct NewestSites {
+    /// Plant id → (its newest placed leaf, that leaf's PNG under the folder).
+    pub files: std::collections::BTreeMap<String, (u32, String)>,
+    /// PNGs drawn this time (the others were there already).
+    pub drawn: usize,
+    /// Plants whose image has left the drop directory (nothing drawn).
+    pub gone: usize,
+}
+
+/// Draws each plant's newest placed leaf into `dir` for the nightly export,
+/// only what is not there yet: a file's name carries a digest of its image
+/// and box, so a site that moves (a refit) is drawn again, and files of sites
+/// that no longer exist are removed.
+pub fn draw_newest(timelines: &[PlantTimeline], drop_dir: &Path, dir: &Path) -> anyhow::Result<NewestSites> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let mut done = NewestSites::default();
+    for t in timelines {
+        let Some(site) = t.sites.iter().max_by_key(|s| s.leaf) else {
+            continue;
+        };
+        let digest = crate::worker::sha256_hex(format!("{}|{:?}", site.image, site.bbox).as_bytes());
+        let name = format!(
+            "{}-leaf-{:02}-{}.png",
+            super::plot::file_stem(&t.plant),
+            site.leaf,
+            &digest[..8]
+        );
+        let out = dir.join(&name);
+        if !out.exists() {
+            let src = drop_dir.join(&site.image);
+            let Ok(full) = image::open(&src) else {
+                done.gone += 1;
+                continue;
+            };
+            let img = draw(&full.to_rgb8(), site.bbox, site.centre);
+            super::atomic::replace(&out, ".png", |tmp| {
+                img.save_with_format(tmp, image::ImageFormat::Png)
+                    .with_context(|| format!("writing {}", out.display()))
+            })?;
+            done.drawn += 1;
+        }
+        done.files.insert(t.plant.clone(), (site.leaf, name));
+    }
+    let keep: std::collections::HashSet<&str> = done.files.values().map(|(_, n)| n.as_str()).collect();
+    for entry in std::fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))? {
+        let path = entry?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+        if name.ends_with(".png") && name.contains("-leaf-") && !keep.contains(name) {
+            std::fs::remove_file(&path).with_context(|| format!("removing {}", path.display()))?;
+        }
+    }
+    Ok(done)
+}
+
 /// The square around a leaf's box `bbox` (centre `centre`) cut from `full`,
 /// enlarged to at least [`MIN_SIDE`], with the box and centre drawn.
 fn draw(full: &RgbImage, bbox: [u32; 4], centre: [f64; 2]) -> RgbImage {
@@ -84,6 +140,53 @@ fn draw(full: &RgbImage, bbox: [u32; 4], centre: [f64; 2]) -> RgbImage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn timeline(plant: &str, image: &str, leaf: u32) -> PlantTimeline {
+        PlantTimeline {
+            plant: plant.into(),
+            phyllochron_days: None,
+            phyllochron_cd: None,
+            sessions: Vec::new(),
+            events: Vec::new(),
+            sites: vec![crate::store::LeafSiteRow {
+                leaf,
+                view: "SV_0".into(),
+                image: image.into(),
+                centre: [30.0, 30.0],
+                bbox: [25, 25, 35, 35],
+                area: 60,
+            }],
+        }
+    }
+
+    #[test]
+    fn the_nightly_sites_draw_only_what_is_new_and_drop_what_moved() {
+        let drop = tempfile::tempdir().unwrap();
+        let out = tempfile::tempdir().unwrap();
+        RgbImage::from_pixel(64, 64, Rgb([200, 200, 200]))
+            .save(drop.path().join("a.png"))
+            .unwrap();
+        let first = draw_newest(
+            &[timeline("P1", "a.png", 5), timeline("P2", "gone.png", 3)],
+            drop.path(),
+            out.path(),
+        )
+        .unwrap();
+        assert_eq!((first.drawn, first.gone), (1, 1));
+        let (leaf, name) = first.files["P1"].clone();
+        assert!(leaf == 5 && name.starts_with("P1-leaf-05-"), "{name}");
+        // Nothing new: nothing drawn.
+        let again = draw_newest(&[timeline("P1", "a.png", 5)], drop.path(), out.path()).unwrap();
+        assert_eq!(again.drawn, 0);
+        // A newer leaf replaces the old file.
+        let newer = draw_newest(&[timeline("P1", "a.png", 6)], drop.path(), out.path()).unwrap();
+        assert_eq!(newer.drawn, 1);
+        let names: Vec<String> = std::fs::read_dir(out.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names, vec![newer.files["P1"].1.clone()]);
+    }
 
     #[test]
     fn a_small_leaf_is_drawn_enlarged_on_a_square_round_it() {
