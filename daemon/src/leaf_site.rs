@@ -82,7 +82,10 @@ pub fn locate(before: &[ViewLeaves], after: &[ViewLeaves], n: usize) -> Vec<Site
         .filter(|v| v.view.starts_with("SV") && !v.leaves.is_empty())
         .collect();
     // Angle order, so the same images give the same site whatever order they came in.
-    views.sort_by_key(|v| (v.view[3..].parse::<u32>().unwrap_or(u32::MAX), v.view.clone()));
+    views.sort_by_key(|v| {
+        let angle = v.view.get(3..).and_then(|a| a.parse::<u32>().ok());
+        (angle.unwrap_or(u32::MAX), v.view.clone())
+    });
     let smallest = |v: &ViewLeaves| {
         *v.leaves
             .iter()
@@ -225,6 +228,17 @@ mod tests {
         );
         assert!(sites.iter().all(|s| s.view == "SV_0"));
         assert!(locate(&[], &[view("SV_0", vec![])], 1).is_empty());
+    }
+
+    #[test]
+    fn views_named_without_an_angle_are_ranked_last_not_a_panic() {
+        let l = vec![leaf(100.0, 100.0, 50)];
+        let after = [
+            view("SV", l.clone()),
+            view("SV_x", l.clone()),
+            view("SV_144", l.clone()),
+        ];
+        assert_eq!(locate(&[], &after, 1)[0].view, "SV_144");
     }
 
     #[test]

@@ -105,7 +105,10 @@ pub fn draw_newest(timelines: &[PlantTimeline], drop_dir: &Path, dir: &Path) -> 
 fn draw(full: &RgbImage, bbox: [u32; 4], centre: [f64; 2]) -> RgbImage {
     let (w, h) = full.dimensions();
     let [x0, y0, x1, y1] = bbox;
-    let side = (h / 3).max(6 * (x1 - x0).max(y1 - y0)).min(w.min(h)).max(1);
+    let side = (h / 3)
+        .max(6 * x1.saturating_sub(x0).max(y1.saturating_sub(y0)))
+        .min(w.min(h))
+        .max(1);
     let cx = ((x0 + x1) / 2).saturating_sub(side / 2).min(w - side);
     let cy = ((y0 + y1) / 2).saturating_sub(side / 2).min(h - side);
     let crop = imageops::crop_imm(full, cx, cy, side, side).to_image();
@@ -196,6 +199,9 @@ mod tests {
         assert_eq!(img.width(), img.height());
         assert!(img.width() >= MIN_SIDE, "{}", img.width());
         assert!(img.pixels().any(|p| *p == RED));
+        // A box stored upside down draws, rather than taking the service down.
+        let odd = draw(&full, [310, 380, 300, 350], [305.0, 365.0]);
+        assert!(odd.width() >= MIN_SIDE);
         // A box near the frame's corner keeps its square inside the frame.
         let corner = draw(&full, [600, 500, 612, 512], [606.0, 506.0]);
         assert_eq!(corner.width(), corner.height());
