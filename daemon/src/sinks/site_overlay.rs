@@ -19,16 +19,22 @@ const RED: Rgb<u8> = Rgb([230, 20, 20]);
 pub const MIN_SIDE: u32 = 480;
 
 /// Draws every located leaf of `t` from the images under `drop_dir` into
-/// `dir`; returns the files written. A missing or unreadable image is an
-/// error naming it (the drop directory may have been cleaned since).
+/// `dir`; returns the files written. A missing or unreadable image (the
+/// drop directory may have been cleaned since) does not stop the others: the
+/// error, after them, names each.
 pub fn draw_sites(t: &PlantTimeline, drop_dir: &Path, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut written = Vec::new();
+    let mut unreadable = Vec::new();
     for site in &t.sites {
         let src = drop_dir.join(&site.image);
-        let full = image::open(&src)
-            .with_context(|| format!("leaf {} of {}: reading {}", site.leaf, t.plant, src.display()))?
-            .to_rgb8();
+        let full = match image::open(&src) {
+            Ok(img) => img.to_rgb8(),
+            Err(e) => {
+                unreadable.push(format!("leaf {}: {}: {e}", site.leaf, src.display()));
+                continue;
+            }
+        };
         let img = draw(&full, site.bbox, site.centre);
         let out = dir.join(format!(
             "{}-leaf-{:02}.png",
@@ -40,6 +46,17 @@ pub fn draw_sites(t: &PlantTimeline, drop_dir: &Path, dir: &Path) -> anyhow::Res
                 .with_context(|| format!("writing {}", out.display()))
         })?;
         written.push(out);
+    }
+    if !unreadable.is_empty() {
+        anyhow::bail!(
+            "{} of {} new leaves of {} drawn into {}; {} images could not be read:\n  {}",
+            written.len(),
+            t.sites.len(),
+            t.plant,
+            dir.display(),
+            unreadable.len(),
+            unreadable.join("\n  ")
+        );
     }
     Ok(written)
 }
@@ -160,6 +177,23 @@ mod tests {
                 area: 60,
             }],
         }
+    }
+
+    #[test]
+    fn a_missing_image_is_named_and_the_other_leaves_still_drawn() {
+        let drop = tempfile::tempdir().unwrap();
+        let out = tempfile::tempdir().unwrap();
+        RgbImage::from_pixel(64, 64, Rgb([200, 200, 200]))
+            .save(drop.path().join("a.png"))
+            .unwrap();
+        let mut t = timeline("P1", "gone.png", 4);
+        t.sites.extend(timeline("P1", "a.png", 5).sites);
+        let err = draw_sites(&t, drop.path(), out.path()).unwrap_err().to_string();
+        assert!(
+            err.contains("1 of 2 new leaves of P1") && err.contains("leaf 4: ") && err.contains("gone.png"),
+            "{err}"
+        );
+        assert!(out.path().join("P1-leaf-05.png").exists());
     }
 
     #[test]
