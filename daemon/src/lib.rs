@@ -6,7 +6,8 @@
 //! ```text
 //! source::watch / source::scan ─► source::intake (stability, dedupe) ─► bounded queue
 //!   ─► worker (hash, names, counter off the async runtime) ─► store (one transaction per image)
-//!   ─► timeline (view fusion, isotonic fit, events) ─► sinks: tail, export, plot, status, backup
+//!   ─► timeline (view fusion, isotonic fit, events; leaf_site: where each new leaf is)
+//!   ─► sinks: tail, export, plot, site_overlay, status, backup
 //!   (groups: plants → genotype / treatment summaries; review: the days to check; for export)
 //! ```
 //!
