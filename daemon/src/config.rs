@@ -210,6 +210,20 @@ pub struct ExportConfig {
     /// Whether `phyllo export` without `--out` also draws every plant's
     /// timeline into `<dir>/plots/<plant>.png`.
     pub plots: bool,
+    /// The nightly plots' x axis: `days`, or `degree-days` of the imported
+    /// temperature log (a plant the log does not cover is drawn in days).
+    pub plot_axis: PlotAxis,
+}
+
+/// What the nightly plots' x axis measures (`[export] plot_axis`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PlotAxis {
+    /// Days since the plant's first session.
+    #[default]
+    Days,
+    /// Degree-days of the temperature log since the first session.
+    DegreeDays,
 }
 
 impl Default for ExportConfig {
@@ -217,6 +231,7 @@ impl Default for ExportConfig {
         Self {
             dir: None,
             plots: true,
+            plot_axis: PlotAxis::Days,
         }
     }
 }
@@ -472,6 +487,7 @@ mod tests {
             "[export]",
             "dir",
             "plots",
+            "plot_axis",
             "[feed]",
             "keep_days",
             "[backup]",

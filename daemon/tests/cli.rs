@@ -731,6 +731,19 @@ fn timelines_plot_against_degree_days() {
         "{err}"
     );
     assert!(!png.exists(), "no half-drawn plot is left");
+    // The nightly plots in degree-days: the plants the log does not cover are drawn in days.
+    let mut text = std::fs::read_to_string(cfg).unwrap();
+    text += "[export]\nplot_axis = \"degree-days\"\n";
+    std::fs::write(cfg, text).unwrap();
+    let out = ok(&["export", "-c", cfg]);
+    assert!(
+        out.contains("plots: 6 plants in days, their sessions outside the temperature log"),
+        "{out}"
+    );
+    assert_eq!(
+        std::fs::read_dir(d.join("state/exports/plots")).unwrap().count(),
+        6
+    );
 
     // The log runs on to the end of November: every session is covered.
     let mut rest = String::from("timestamp,temp_c\n");
@@ -740,6 +753,8 @@ fn timelines_plot_against_degree_days() {
     std::fs::write(d.join("rest.csv"), &rest).unwrap();
     ok(&["import", "-c", cfg, d.join("rest.csv").to_str().unwrap()]);
     ok(&["timeline", "-c", cfg, "F-1", "--plot", png_arg, "--degree-days"]);
+    let out = ok(&["export", "-c", cfg]);
+    assert!(!out.contains("plants in days"), "{out}");
     let img = image::open(&png).unwrap();
     assert_eq!((img.width(), img.height()), (1000, 600));
     let days_png = d.join("F-1-days.png");

@@ -3,9 +3,10 @@
 use std::path::PathBuf;
 
 use super::ConfigArg;
-use crate::config::Config;
+use crate::config::{Config, PlotAxis};
 use crate::groups::GroupRule;
 use crate::sinks::export::{self, KINDS};
+use crate::sinks::plot::TimeAxis;
 use crate::sinks::{group_report, index_html, review_sheet};
 use crate::store::Store;
 
@@ -69,9 +70,26 @@ fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Resul
     let timelines = store.plant_timelines()?;
     if config.export.plots {
         let plots = dir.join("plots");
-        index.plots =
-            crate::sinks::plot::plot_all(&timelines, &plots, crate::sinks::plot::TimeAxis::Days)?.files;
+        let clock = match config.export.plot_axis {
+            PlotAxis::Days => None,
+            PlotAxis::DegreeDays => {
+                let clock = store.thermal_clock(config.timeline.base_temp_c)?;
+                if clock.is_none() {
+                    println!("plots: in days, since no temperature log has been imported");
+                }
+                clock
+            }
+        };
+        let axis = clock.as_ref().map_or(TimeAxis::Days, TimeAxis::DegreeDays);
+        let drawn = crate::sinks::plot::plot_all(&timelines, &plots, axis)?;
+        index.plots = drawn.files;
         println!("plots: {} plants → {}", index.plots.len(), plots.display());
+        if drawn.in_days > 0 {
+            println!(
+                "plots: {} plants in days, their sessions outside the temperature log",
+                drawn.in_days
+            );
+        }
         let sites = dir.join("sites");
         let newest = crate::sinks::site_overlay::draw_newest(&timelines, &config.drop_dir, &sites)?;
         println!(

@@ -249,9 +249,14 @@ pub struct PlotFiles {
     pub files: std::collections::BTreeMap<String, String>,
     /// Plants without a counted session (nothing to draw).
     pub empty: usize,
+    /// Plants drawn in days though degree-days were asked for (the
+    /// temperature log does not cover their sessions).
+    pub in_days: usize,
 }
 
-/// Draws every plant with a session into `dir`, one PNG per plant.
+/// Draws every plant with a session into `dir`, one PNG per plant; with
+/// degree-days, a plant the log does not cover is drawn in days and counted
+/// in [`PlotFiles::in_days`].
 pub fn plot_all(timelines: &[PlantTimeline], dir: &Path, axis: TimeAxis) -> anyhow::Result<PlotFiles> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut drawn = PlotFiles::default();
@@ -268,7 +273,15 @@ pub fn plot_all(timelines: &[PlantTimeline], dir: &Path, axis: TimeAxis) -> anyh
             n += 1;
             stem = format!("{}_{n}", file_stem(&t.plant));
         }
-        super::atomic::replace(&dir.join(format!("{stem}.png")), ".png", |tmp| plot(t, tmp, axis))?;
+        let out = dir.join(format!("{stem}.png"));
+        let drawn_as = super::atomic::replace(&out, ".png", |tmp| plot(t, tmp, axis));
+        if drawn_as.is_err() && matches!(axis, TimeAxis::DegreeDays(_)) {
+            // Every x is worked out before drawing, so this is a plant the log does not cover.
+            super::atomic::replace(&out, ".png", |tmp| plot(t, tmp, TimeAxis::Days))?;
+            drawn.in_days += 1;
+        } else {
+            drawn_as?;
+        }
         drawn.files.insert(t.plant.clone(), format!("{stem}.png"));
     }
     Ok(drawn)
