@@ -62,7 +62,7 @@ pub fn leaves_of(instances: &serde_json::Value) -> Vec<Leaf> {
         .as_array()
         .map(|a| {
             a.iter()
-                .filter_map(|v| serde_json::from_value::<Stored>(v.clone()).ok())
+                .filter_map(|v| Stored::deserialize(v).ok())
                 .filter(|s| s.class == phyllo_contract::LEAF)
                 .map(|s| s.leaf)
                 .collect()

@@ -41,10 +41,7 @@ pub fn draw_sites(t: &PlantTimeline, drop_dir: &Path, dir: &Path) -> anyhow::Res
             super::plot::file_stem(&t.plant),
             site.leaf
         ));
-        super::atomic::replace(&out, ".png", |tmp| {
-            img.save_with_format(tmp, image::ImageFormat::Png)
-                .with_context(|| format!("writing {}", out.display()))
-        })?;
+        write_png(&img, &out)?;
         written.push(out);
     }
     if !unreadable.is_empty() {
@@ -98,10 +95,7 @@ pub fn draw_newest(timelines: &[PlantTimeline], drop_dir: &Path, dir: &Path) -> 
                 continue;
             };
             let img = draw(&full.to_rgb8(), site.bbox, site.centre);
-            super::atomic::replace(&out, ".png", |tmp| {
-                img.save_with_format(tmp, image::ImageFormat::Png)
-                    .with_context(|| format!("writing {}", out.display()))
-            })?;
+            write_png(&img, &out)?;
             done.drawn += 1;
         }
         done.files.insert(t.plant.clone(), (site.leaf, name));
@@ -115,6 +109,14 @@ pub fn draw_newest(timelines: &[PlantTimeline], drop_dir: &Path, dir: &Path) -> 
         }
     }
     Ok(done)
+}
+
+/// Writes `img` to `out` as PNG, renamed into place whole.
+fn write_png(img: &RgbImage, out: &Path) -> anyhow::Result<()> {
+    super::atomic::replace(out, ".png", |tmp| {
+        img.save_with_format(tmp, image::ImageFormat::Png)
+            .with_context(|| format!("writing {}", out.display()))
+    })
 }
 
 /// The square around a leaf's box `bbox` (centre `centre`) cut from `full`,
