@@ -49,7 +49,7 @@ fi
 # The toy run: same script, same init.pt, this CPU, a few seconds of training.
 toy=$(mktemp -d)
 trap 'rm -rf "$toy"' EXIT
-OUT_DIR=$toy/out WORK=$toy/work PLANTS=4 SHARDS=2 STEPS=2 BATCH=2 CROP=128 DEVICE=cpu WORKERS=1 \
+OUT_DIR=$toy/out WORK=$toy/work PLANTS=4 SHARDS=2 STEPS=2 KEEP_EVERY=1 BATCH=2 CROP=128 DEVICE=cpu WORKERS=1 \
   PYTHON=$py RUNS=${runs//\$PWD/$root} bash scripts/device-train.sh >"$toy/log" 2>&1 || true
 IFS=';' read -ra specs <<<"$runs"
 for spec in "${specs[@]}"; do
@@ -59,11 +59,13 @@ for spec in "${specs[@]}"; do
     exit 1
   fi
 done
+tar -tf "$toy/out/steps.tar" | grep -q 'step-000002.pt' \
+  || { echo "device-prepare: the toy run brought back no step checkpoints"; tail -20 "$toy/log"; exit 1; }
 echo "device-prepare: toy run of device-train.sh on this CPU exported $(cd "$toy/out" && ls -- *.onnx | tr '\n' ' ')"
 du -sh .device | sed 's/^/device-prepare: carry /'
 cat <<EOF
 device-prepare: ready. Call the device tool's run with carry [".device"], timeout_s 590, and e.g.
-  MINUTES=6 STEPS=100000 VAL_EVERY=500 PLANTS=2400 SHARDS=16 GEN_SECONDS=90 WORKERS=14 BATCH=$batch CROP=$crop \\
+  MINUTES=6 STEPS=100000 VAL_EVERY=500 KEEP_EVERY=1000 PLANTS=2400 SHARDS=16 GEN_SECONDS=90 WORKERS=14 BATCH=$batch CROP=$crop \\
     PRESETS=btx623,pawaga,rtx430,sc301,tx3197,maize:1.7,maize-late:2,maize-whorl:1.5 \\
     GEN_ARGS="--dead-remnants 0.5 --max-age 84 --max-leaves 16" \\
     RUNS="$runs" \\

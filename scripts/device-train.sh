@@ -59,7 +59,8 @@
 # --freeze-bn], OUT_DIR [$OUT], WORK [/tmp/phyllo-device], PYTHON [python3],
 # GEN [.device/phyllo-gen], GEN_ARGS [--dead-remnants 0.5: half the plants keep
 # their dead leaves' dried sheaths and blade stubs, labelled stem], SHARDS [8],
-# GEN_SECONDS [none: every shard]. For the
+# GEN_SECONDS [none: every shard], KEEP_EVERY [none: also bring back a slim
+# checkpoint every N steps, in steps.tar]. For the
 # whole season (plants past 8 weeks, 14-16 leaves; models/EXPERIMENTS.md,
 # "Plants past eight weeks"): PRESETS=btx623,pawaga,rtx430,sc301,tx3197,maize:1.7,maize-late:3
 # GEN_ARGS="--dead-remnants 0.5 --max-age 84 --max-leaves 16".
@@ -112,7 +113,7 @@ for spec in "${specs[@]}"; do
   (cd "$root/models" && PYTHONUNBUFFERED=1 "$py" -m phyllo_train.train --data "$data" --out "$work/run-$name" \
     --steps "$steps" ${MINUTES:+--minutes "$MINUTES"} --warmup 100 --crop "${CROP:-512}" \
     --batch "${BATCH:-16}" --device "${DEVICE:-cuda}" --workers "$workers" --photometric "${PHOTOMETRIC:-device}" \
-    $([ "${PRELOAD:-1}" = 1 ] && echo --preload) \
+    $([ "${PRELOAD:-1}" = 1 ] && echo --preload) ${KEEP_EVERY:+--keep-every "$KEEP_EVERY"} \
     --val-every "${VAL_EVERY:-$keep}" --ckpt-every "${VAL_EVERY:-$keep}" --log-every 50 --seed "$seed" ${spec#*|} \
     --data-note "scripts/device-train.sh: phyllo-gen dataset --plants $plants --seed $seed --preset $presets ${GEN_ARGS---dead-remnants 0.5}" \
     >"$work/train-$name.log" 2>&1 && echo "device-train: run $name finished" \
@@ -148,4 +149,25 @@ for spec in "${specs[@]}"; do
   tail -3 "$work/train-$name.log" | sed "s/^/[$name] /"
 done
 tar -C "$work/back" -cf "$out/runs.tar" .
+# KEEP_EVERY's step checkpoints (slim, as above) go in steps.tar, so that the
+# run can be scored step by step here (scripts/score-checkpoints.sh). A file
+# may bring back 16 MiB: the earliest steps are dropped until the tar fits.
+if [ -n "${KEEP_EVERY:-}" ]; then
+  mkdir -p "$work/steps"
+  for spec in "${specs[@]}"; do
+    name=${spec%%|*}
+    mkdir -p "$work/steps/$name"
+    for ck in "$work/run-$name"/step-*.pt; do
+      [ -e "$ck" ] && "$py" -c "$slim" "$ck" "$work/steps/$name/$(basename "$ck")"
+    done
+  done
+  while :; do
+    tar -C "$work/steps" -cf "$out/steps.tar" .
+    (( $(stat -c %s "$out/steps.tar") <= 15 * 1024 * 1024 )) && break
+    oldest=$(cd "$work/steps" && ls -- */step-*.pt 2>/dev/null | sort -t/ -k2 | head -1)
+    [ -n "$oldest" ] || break
+    echo "device-train: steps.tar over 15 MiB, leaving out $oldest"
+    rm -f "$work/steps/$oldest"
+  done
+fi
 echo "device-train: done in $(( $(date +%s) - t0 )) s; $(ls "$out" | tr '\n' ' ')"
