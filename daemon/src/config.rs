@@ -186,6 +186,20 @@ pub struct TimelineConfig {
     /// leaf above it, once `phyllo import` has a temperature log: about 10
     /// for sorghum, 8 to 10 for maize.
     pub base_temp_c: f64,
+    /// Greenhouse compartments with temperature logs of their own
+    /// (`[[timeline.zones]]`); a plant takes the first whose `plants`
+    /// expression matches its id, else the facility's log.
+    pub zones: Vec<ZoneConfig>,
+}
+
+/// `[[timeline.zones]]`: one greenhouse compartment ([`crate::climate_zone`]).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ZoneConfig {
+    /// The name a temperature log's `zone` column gives.
+    pub name: String,
+    /// Regular expression over plant ids: the plants grown in this zone.
+    pub plants: String,
 }
 
 impl Default for TimelineConfig {
@@ -196,6 +210,7 @@ impl Default for TimelineConfig {
             living_window: 3,
             death_penalty: 2.5,
             base_temp_c: 10.0,
+            zones: Vec::new(),
         }
     }
 }
@@ -357,6 +372,7 @@ impl Config {
             bail!("feed.keep_days must be 0 (keep every entry) or a positive number of days");
         }
         crate::timeline::FusionRule::parse(&self.timeline.fusion)?;
+        crate::climate_zone::ZoneRules::from_config(&self.timeline.zones)?;
         crate::names::NamePatterns::from_config(&self.names)?;
         crate::groups::GroupRule::from_config(&self.groups)?;
         Ok(())
@@ -421,6 +437,9 @@ mod tests {
             "[feed]\nkeep_days = -1",
             "[groups]\npattern = \"^(?P<genotype>.+)$\"\nby = [\"treatment\"]",
             "[[names.patterns]]\nname = \"x\"\nregex = \"(?P<plant>.*)\"",
+            "[[timeline.zones]]\nname = \"h2\"\nplants = \"(\"",
+            "[[timeline.zones]]\nname = \"h2\"\nplants = \"^2\"\n[[timeline.zones]]\nname = \"h2\"\nplants = \"^3\"",
+            "[[timeline.zones]]\nname = \"h2\"",
         ] {
             let text = format!("drop_dir = \"/d\"\ndatabase = \"/db\"\n{bad}\n");
             assert!(Config::parse(&text).is_err(), "accepted: {bad}");
@@ -484,6 +503,8 @@ mod tests {
             "living_window",
             "death_penalty",
             "base_temp_c",
+            "[[timeline.zones]]",
+            "plants",
             "[export]",
             "dir",
             "plots",

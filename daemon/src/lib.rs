@@ -18,6 +18,7 @@
 pub use phyllo_inference as inference;
 
 pub mod cli;
+pub mod climate_zone;
 pub mod config;
 pub mod counting;
 pub mod disk;

@@ -197,6 +197,8 @@ pub struct TimelineParams {
     pub death_penalty: f64,
     /// Base temperature of the thermal phyllochron ([`crate::thermal`]).
     pub base_temp_c: f64,
+    /// Which temperature log times each plant ([`crate::climate_zone`]).
+    pub zones: crate::climate_zone::ZoneRules,
 }
 
 impl TimelineParams {
@@ -208,6 +210,7 @@ impl TimelineParams {
             living_window: cfg.living_window,
             death_penalty: cfg.death_penalty,
             base_temp_c: cfg.base_temp_c,
+            zones: crate::climate_zone::ZoneRules::from_config(&cfg.zones)?,
         })
     }
 }

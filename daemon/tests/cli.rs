@@ -535,7 +535,15 @@ fn review_lists_the_days_in_doubt_and_the_filled_sheet_settles_them() {
 /// imported for six plants: a leaf every 2, 2 and 3 days in genotype F,
 /// every 4, 4 and 5 in S. Returns the config's path.
 fn two_genotypes(d: &Path) -> String {
-    let (cfg, _) = site_config(d, "[groups]\npattern = '^(?P<genotype>[A-Z]+)-\\d+$'\n");
+    two_genotypes_with(d, "")
+}
+
+/// [`two_genotypes`] with `extra` at the end of the config.
+fn two_genotypes_with(d: &Path, extra: &str) -> String {
+    let (cfg, _) = site_config(
+        d,
+        &format!("[groups]\npattern = '^(?P<genotype>[A-Z]+)-\\d+$'\n{extra}"),
+    );
     let mut obs = String::from("plant,timestamp,view,leaf_count\n");
     for (p, every) in [
         ("F-1", 2),
@@ -641,8 +649,9 @@ fn a_temperature_log_gives_degree_days_per_leaf() {
     );
 
     let status: serde_json::Value = serde_json::from_str(&ok(&["status", "-c", cfg, "--json"])).unwrap();
-    assert_eq!(status["climate"]["readings"], 1152, "{status}");
-    assert_eq!(status["climate"]["longest_gap_hours"], 0.5, "{status}");
+    assert_eq!(status["climate"][0]["readings"], 1152, "{status}");
+    assert_eq!(status["climate"][0]["zone"], "", "{status}");
+    assert_eq!(status["climate"][0]["longest_gap_hours"], 0.5, "{status}");
     assert!(ok(&["status", "-c", cfg]).contains(
         "climate:   1152 temperatures from 2026-10-30T00:00 to 2026-11-22T23:30; longest gap 0.5 h\n"
     ));
@@ -693,6 +702,128 @@ fn a_temperature_log_gives_degree_days_per_leaf() {
         .find(|c| c["measure"] == "phyllochron_cd")
         .unwrap();
     assert!(thermal["difference"].as_f64().unwrap() < -20.0, "{thermal}");
+}
+
+/// `timestamp,temp_c[,zone]` rows every 30 minutes from 30 October for 24
+/// days at `temp(hour)` °C.
+fn temperature_log(zone: Option<&str>, temp: impl Fn(u32) -> f64) -> String {
+    let start = chrono::NaiveDate::from_ymd_opt(2026, 10, 30)
+        .unwrap()
+        .and_hms_opt(0, 0, 0)
+        .unwrap();
+    let mut log = String::from(if zone.is_some() {
+        "timestamp,temp_c,zone\n"
+    } else {
+        "timestamp,temp_c\n"
+    });
+    for k in 0..(24 * 48) {
+        let t = start + chrono::Duration::minutes(30 * k);
+        let temp = temp(chrono::Timelike::hour(&t));
+        match zone {
+            Some(z) => log += &format!("{},{temp},{z}\n", t.format("%Y-%m-%dT%H:%M:%S")),
+            None => log += &format!("{},{temp}\n", t.format("%Y-%m-%dT%H:%M:%S")),
+        }
+    }
+    log
+}
+
+/// Compartments (`[[timeline.zones]]`) with logs of their own: each plant's
+/// degree-days come from its zone's log, or the facility's for a plant in
+/// none; a log naming an undeclared zone is refused by file and line, and a
+/// zone without readings is named where it leaves a plant untimed.
+#[test]
+fn compartments_keep_their_own_temperature_logs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cfg = two_genotypes_with(
+        d,
+        "[[timeline.zones]]\nname = 'empty-house'\nplants = '^S-3$'\n\
+         [[timeline.zones]]\nname = 'hot-house'\nplants = '^F-'\n",
+    );
+    let cfg = cfg.as_str();
+    // The facility: 18 °C at night, 28 °C by day (13 °Cd a day); the hot house a steady 30 °C (20).
+    std::fs::write(
+        d.join("facility.csv"),
+        temperature_log(None, |h| if (6..18).contains(&h) { 28.0 } else { 18.0 }),
+    )
+    .unwrap();
+    let hot = temperature_log(Some("hot-house"), |_| 30.0);
+    std::fs::write(d.join("typo.csv"), hot.replacen(",hot-house\n", ",hot-hous\n", 1)).unwrap();
+    std::fs::write(d.join("hot.csv"), hot).unwrap();
+    let out = phyllo(&["import", "-c", cfg, d.join("typo.csv").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && err.contains("typo.csv:2: zone 'hot-hous' is not declared")
+            && err.contains("it declares empty-house, hot-house"),
+        "{err}"
+    );
+    ok(&["import", "-c", cfg, d.join("facility.csv").to_str().unwrap()]);
+    let out = ok(&["import", "-c", cfg, d.join("hot.csv").to_str().unwrap()]);
+    assert!(
+        out.contains("1152 temperatures for zones hot-house (5 plants"),
+        "{out}"
+    );
+
+    let cd = |p: &str| -> Option<f64> {
+        let t: serde_json::Value = serde_json::from_str(&ok(&["timeline", "-c", cfg, p, "--json"])).unwrap();
+        t["phyllochron_cd"].as_f64()
+    };
+    // F-1 and S-1 each gain a leaf every 2 and 4 days.
+    assert_eq!(
+        cd("F-1").map(f64::round),
+        Some(40.0),
+        "the hot house's 20 °Cd a day"
+    );
+    assert_eq!(
+        cd("S-1").map(f64::round),
+        Some(52.0),
+        "the facility's 13 °Cd a day"
+    );
+    assert_eq!(cd("S-3"), None, "the empty house has no log");
+    let status = ok(&["status", "-c", cfg]);
+    assert!(
+        status.contains("climate:   1152 temperatures from 2026-10-30T00:00")
+            && status.contains("climate:   zone hot-house: 1152 temperatures")
+            && status.contains("climate:   zone empty-house: no temperatures yet"),
+        "{status}"
+    );
+    let png = d.join("plot.png");
+    ok(&[
+        "timeline",
+        "-c",
+        cfg,
+        "F-1",
+        "--plot",
+        png.to_str().unwrap(),
+        "--degree-days",
+    ]);
+    assert!(std::fs::metadata(&png).unwrap().len() > 1000);
+    let out = phyllo(&[
+        "timeline",
+        "-c",
+        cfg,
+        "S-3",
+        "--plot",
+        png.to_str().unwrap(),
+        "--degree-days",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("plant S-3 is timed by zone empty-house's temperature log"),
+        "{err}"
+    );
+    let plots = d.join("plots");
+    let out = phyllo(&[
+        "timeline",
+        "-c",
+        cfg,
+        "--plots",
+        plots.to_str().unwrap(),
+        "--degree-days",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(plots.join("S-3.png").exists() && plots.join("F-1.png").exists());
 }
 
 /// `phyllo timeline --plot/--plots --degree-days`: the x axis in degree-days

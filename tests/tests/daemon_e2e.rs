@@ -664,48 +664,84 @@ fn true_phyllochrons(truth: &[BTreeMap<String, String>]) -> BTreeMap<String, (f6
     out
 }
 
-/// The same plants grown in a cool and a warm greenhouse (`phyllo-gen
-/// sequence --climate`): fed their true living-leaf counts and the
-/// greenhouse's temperature log, phyllo's phyllochron in days per leaf
-/// follows the temperature, while its degree-days per leaf stay with the
-/// truth's, which the climate does not change.
+/// The same plants grown in a cool and a warm compartment (`phyllo-gen
+/// sequence --climate`), imaged by one station into one database whose config
+/// declares the two as zones: fed their true living-leaf counts and each
+/// compartment's temperature log (the zone named in the log's `zone` column),
+/// phyllo's phyllochron in days per leaf follows the temperature, while its
+/// degree-days per leaf stay with the truth's, which the climate does not
+/// change. Both logs cover the same dates, so a plant timed by the other
+/// compartment's log would be off by half or double.
 #[test]
 fn phyllochron_in_degree_days_holds_across_climates() {
     let (target, phyllo, gen) = binaries();
-    let mut means = Vec::new();
+    let (store, cfg) = fresh_store(
+        "[[timeline.zones]]\nname = 'cool'\nplants = '^cool-'\n[[timeline.zones]]\nname = 'warm'\nplants = '^warm-'\n",
+    );
+    let run = |args: &[&std::ffi::OsStr]| {
+        let st = Command::new(&phyllo).args(args).output().unwrap();
+        assert!(
+            st.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+    };
     // The same stretch of development in both (about 8 to 27 days at 25 °C):
     // the warm plants grow twice as fast, so they are imaged younger and for
     // fewer days, and neither reaches the leaf deaths living counts cannot date.
-    for (climate, start_age, days) in [("19", 14, 30), ("29", 7, 14)] {
+    let mut truths = Vec::new();
+    for (zone, climate, start_age, days) in [("cool", "19", 14, 30), ("warm", "29", 7, 14)] {
         let (dir, truth) = sequence_truth_dir(&target, &gen, (8, days, 13, start_age), Some(climate));
-        let (store, cfg) = fresh_store("");
-        let obs_path = store.path().join("counts.csv");
+        // The two sequences share plant ids: each compartment's get its name.
+        let truth: Vec<BTreeMap<String, String>> = truth
+            .into_iter()
+            .map(|mut t| {
+                let id = format!("{zone}-{}", t["plant"]);
+                t.insert("plant".into(), id);
+                t
+            })
+            .collect();
+        let obs_path = store.path().join(format!("{zone}-counts.csv"));
         std::fs::write(&obs_path, true_counts_in_five_views(&truth)).unwrap();
-        let plants_csv = store.path().join("plants.csv");
-        for args in [
-            vec!["import".into(), "-c".into(), cfg.clone(), obs_path.clone()],
-            vec!["import".into(), "-c".into(), cfg.clone(), dir.join("climate.csv")],
-            vec![
-                "export".into(),
-                "-c".into(),
-                cfg.clone(),
-                "--what".into(),
-                "plants".into(),
-                "--out".into(),
-                plants_csv.clone(),
-            ],
-        ] {
-            let st = Command::new(&phyllo).args(&args).output().unwrap();
-            assert!(
-                st.status.success(),
-                "{args:?}: {}",
-                String::from_utf8_lossy(&st.stderr)
-            );
+        let log = std::fs::read_to_string(dir.join("climate.csv")).unwrap();
+        let mut lines = log.lines();
+        let mut zoned = format!("{},zone\n", lines.next().unwrap());
+        for line in lines {
+            zoned += &format!("{line},{zone}\n");
         }
-        let truth_values = true_phyllochrons(&truth);
+        let log_path = store.path().join(format!("{zone}-climate.csv"));
+        std::fs::write(&log_path, zoned).unwrap();
+        run(&[
+            "import".as_ref(),
+            "-c".as_ref(),
+            cfg.as_os_str(),
+            obs_path.as_os_str(),
+        ]);
+        run(&[
+            "import".as_ref(),
+            "-c".as_ref(),
+            cfg.as_os_str(),
+            log_path.as_os_str(),
+        ]);
+        truths.push((zone, climate, truth));
+    }
+    let plants_csv = store.path().join("plants.csv");
+    run(&[
+        "export".as_ref(),
+        "-c".as_ref(),
+        cfg.as_os_str(),
+        "--what".as_ref(),
+        "plants".as_ref(),
+        "--out".as_ref(),
+        plants_csv.as_os_str(),
+    ]);
+    let exported = read_csv(&plants_csv);
+    let mut means = Vec::new();
+    for (zone, climate, truth) in &truths {
+        let truth_values = true_phyllochrons(truth);
         let (mut days, mut cd, mut err) = ((0.0, 0.0), (0.0, 0.0), 0.0);
         let mut n = 0.0;
-        for row in read_csv(&plants_csv) {
+        for row in &exported {
             let (Some(&(true_days, true_cd)), Ok(got_days), Ok(got_cd)) = (
                 truth_values.get(&row["plant"]),
                 row["phyllochron_days"].parse::<f64>(),
@@ -718,12 +754,9 @@ fn phyllochron_in_degree_days_holds_across_climates() {
             err += (got_cd - true_cd).abs() / true_cd;
             n += 1.0;
         }
-        assert!(
-            n >= 4.0,
-            "climate {climate}: only {n} plants with both phyllochrons"
-        );
+        assert!(n >= 4.0, "zone {zone}: only {n} plants with both phyllochrons");
         eprintln!(
-            "climate {climate} °C: {n} plants; days per leaf {:.2} (truth {:.2}), degree-days per leaf {:.1} \
+            "zone {zone} ({climate} °C): {n} plants; days per leaf {:.2} (truth {:.2}), degree-days per leaf {:.1} \
              (truth {:.1}), mean relative error {:.1} %",
             days.0 / n,
             days.1 / n,
@@ -733,7 +766,7 @@ fn phyllochron_in_degree_days_holds_across_climates() {
         );
         assert!(
             err / n < 0.12,
-            "climate {climate}: degree-days per leaf off by {:.1} %",
+            "zone {zone}: degree-days per leaf off by {:.1} %",
             100.0 * err / n
         );
         means.push((days.0 / n, cd.0 / n));

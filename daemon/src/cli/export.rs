@@ -3,10 +3,10 @@
 use std::path::PathBuf;
 
 use super::ConfigArg;
+use crate::climate_zone::{ZoneClocks, ZoneRules};
 use crate::config::{Config, PlotAxis};
 use crate::groups::GroupRule;
 use crate::sinks::export::{self, KINDS};
-use crate::sinks::plot::TimeAxis;
 use crate::sinks::{group_report, index_html, review_sheet};
 use crate::store::Store;
 
@@ -70,18 +70,23 @@ fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Resul
     let timelines = store.plant_timelines()?;
     if config.export.plots {
         let plots = dir.join("plots");
-        let clock = match config.export.plot_axis {
+        let clocks = match config.export.plot_axis {
             PlotAxis::Days => None,
             PlotAxis::DegreeDays => {
-                let clock = store.thermal_clock(config.timeline.base_temp_c)?;
-                if clock.is_none() {
+                let clocks = ZoneClocks::load(
+                    store,
+                    ZoneRules::from_config(&config.timeline.zones)?,
+                    config.timeline.base_temp_c,
+                )?;
+                if clocks.is_empty() {
                     println!("plots: in days, since no temperature log has been imported");
+                    None
+                } else {
+                    Some(clocks)
                 }
-                clock
             }
         };
-        let axis = clock.as_ref().map_or(TimeAxis::Days, TimeAxis::DegreeDays);
-        let drawn = crate::sinks::plot::plot_all(&timelines, &plots, axis)?;
+        let drawn = crate::sinks::plot::plot_all(&timelines, &plots, clocks.as_ref())?;
         index.plots = drawn.files;
         println!("plots: {} plants → {}", index.plots.len(), plots.display());
         if drawn.in_days > 0 {

@@ -11,7 +11,7 @@ use chrono::{NaiveDate, NaiveDateTime};
 use super::ConfigArg;
 use crate::import_journal;
 use crate::names::View;
-use crate::store::{Store, WritersLock};
+use crate::store::{Reading, Store, WritersLock};
 
 /// Arguments of `phyllo import`.
 #[derive(Debug, clap::Args)]
@@ -20,7 +20,8 @@ pub struct Args {
     config: ConfigArg,
     /// CSV with a header row and columns plant,timestamp,view,leaf_count
     /// (other columns are ignored), or a greenhouse temperature log with
-    /// columns timestamp,temp_c. Timestamps: ISO 8601 (`2018-04-20T10:32:16`,
+    /// columns timestamp,temp_c and, where compartments keep logs of their
+    /// own, zone (a `[[timeline.zones]]` name; empty: the facility's log). Timestamps: ISO 8601 (`2018-04-20T10:32:16`,
     /// a space instead of `T`, or a date alone for noon), facility local time.
     #[arg(value_name = "OBS.csv", required_unless_present = "undo")]
     file: Option<PathBuf>,
@@ -50,7 +51,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             (sheet.skipped, plants)
         }
         Kind::Climate => {
-            read_climate(&file)?;
+            read_climate(
+                &file,
+                &crate::climate_zone::ZoneRules::from_config(&config.timeline.zones)?,
+            )?;
             (0, Default::default())
         }
     };
@@ -152,19 +156,30 @@ pub fn take(store: &mut Store, entry: &import_journal::Entry) -> anyhow::Result<
             Ok(format!("{n} counts for {plants} plants"))
         }
         Kind::Climate => {
-            let readings = read_climate(&entry.file)?;
+            let readings = read_climate(&entry.file, store.zone_rules())?;
             let with = store.import_climate(&entry.source(), &readings, Some(&entry.id))?;
+            let zones: std::collections::BTreeSet<&str> = readings.iter().map(|r| r.zone.as_str()).collect();
+            let named: Vec<&str> = zones.into_iter().filter(|z| !z.is_empty()).collect();
             Ok(format!(
-                "{} temperatures ({with} plants with a phyllochron in degree-days)",
-                readings.len()
+                "{} temperatures{} ({with} plants with a phyllochron in degree-days)",
+                readings.len(),
+                if named.is_empty() {
+                    String::new()
+                } else {
+                    format!(" for zones {}", named.join(", "))
+                }
             ))
         }
     }
 }
 
-/// Reads and validates a temperature log (`timestamp,temp_c`, other columns
-/// ignored); errors name the file, line and problem.
-pub fn read_climate(path: &std::path::Path) -> anyhow::Result<Vec<(NaiveDateTime, f64)>> {
+/// Reads and validates a temperature log (`timestamp,temp_c`, an optional
+/// `zone`, other columns ignored); errors name the file, line and problem.
+/// A zone must be one of `zones`: a misspelt one would time no plant.
+pub fn read_climate(
+    path: &std::path::Path,
+    zones: &crate::climate_zone::ZoneRules,
+) -> anyhow::Result<Vec<Reading>> {
     let (mut rdr, headers) = open_csv(path)?;
     let col = |name: &str| headers.iter().position(|h| h.eq_ignore_ascii_case(name));
     let (Some(ct), Some(cc)) = (col("timestamp"), col("temp_c")) else {
@@ -174,6 +189,7 @@ pub fn read_climate(path: &std::path::Path) -> anyhow::Result<Vec<(NaiveDateTime
             headers
         );
     };
+    let cz = col("zone");
     let mut out = Vec::new();
     for (i, rec) in rdr.records().enumerate() {
         let line = i + 2;
@@ -191,7 +207,24 @@ pub fn read_climate(path: &std::path::Path) -> anyhow::Result<Vec<(NaiveDateTime
                 path.display()
             );
         }
-        out.push((taken_at, temp));
+        let zone = cz.and_then(|z| rec.get(z)).unwrap_or("").to_string();
+        if !zones.knows(&zone) {
+            let declared = zones.names();
+            bail!(
+                "{}:{line}: zone '{zone}' is not declared in the config's [[timeline.zones]] ({})",
+                path.display(),
+                if declared.is_empty() {
+                    "it declares none".to_string()
+                } else {
+                    format!("it declares {}", declared.join(", "))
+                }
+            );
+        }
+        out.push(Reading {
+            zone,
+            taken_at,
+            temp_c: temp,
+        });
     }
     Ok(out)
 }

@@ -255,9 +255,14 @@ fn show(args: Args) -> anyhow::Result<()> {
         timeline.plants_with_lost_leaves,
         timeline.settings.as_deref().unwrap_or("-")
     );
-    if let Some(c) = &climate {
+    for c in &climate {
         println!(
-            "climate:   {} temperatures from {} to {}; longest gap {:.1} h{}",
+            "climate:   {}{} temperatures from {} to {}; longest gap {:.1} h{}",
+            if c.zone.is_empty() {
+                String::new()
+            } else {
+                format!("zone {}: ", c.zone)
+            },
             c.readings,
             &c.first[..c.first.len().min(16)],
             &c.last[..c.last.len().min(16)],
@@ -268,6 +273,14 @@ fn show(args: Args) -> anyhow::Result<()> {
                 ""
             }
         );
+    }
+    for zone in &config.timeline.zones {
+        if !climate.iter().any(|c| c.zone == zone.name) {
+            println!(
+                "climate:   zone {}: no temperatures yet (its plants get no phyllochron in degree-days)",
+                zone.name
+            );
+        }
     }
     if in_doubt > 0 {
         println!("review:    {in_doubt} plant sessions in doubt: `phyllo review` lists the most doubtful to count by hand");

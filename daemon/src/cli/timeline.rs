@@ -3,9 +3,10 @@
 
 use std::path::PathBuf;
 
-use anyhow::bail;
+use anyhow::{bail, Context};
 
 use super::ConfigArg;
+use crate::climate_zone::{ZoneClocks, ZoneRules};
 use crate::sinks::plot::TimeAxis;
 use crate::store::{PlantTimeline, Store};
 
@@ -40,28 +41,40 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let store = Store::open_read_only(&config.database)?;
-    let clock = if args.degree_days {
+    let clocks = if args.degree_days {
         if args.plot.is_none() && args.plots.is_none() {
             bail!("--degree-days sets a plot's axis: give --plot OUT.png or --plots DIR");
         }
-        let Some(clock) = store.thermal_clock(config.timeline.base_temp_c)? else {
+        let clocks = ZoneClocks::load(
+            &store,
+            ZoneRules::from_config(&config.timeline.zones)?,
+            config.timeline.base_temp_c,
+        )?;
+        if clocks.is_empty() {
             bail!(
                 "--degree-days: {} has no temperature log; import one first (phyllo import LOG.csv, columns timestamp,temp_c)",
                 config.database.display()
             );
-        };
-        Some(clock)
+        }
+        Some(clocks)
     } else {
         None
     };
-    let axis = clock.as_ref().map_or(TimeAxis::Days, TimeAxis::DegreeDays);
     if let Some(dir) = &args.plots {
-        let drawn = crate::sinks::plot::plot_all(&store.plant_timelines()?, dir, axis)?;
+        let drawn = crate::sinks::plot::plot_all(&store.plant_timelines()?, dir, clocks.as_ref())?;
         eprintln!(
-            "{} plots written to {} ({} plants without a counted session)",
+            "{} plots written to {} ({} plants without a counted session{})",
             drawn.files.len(),
             dir.display(),
-            drawn.empty
+            drawn.empty,
+            if drawn.in_days > 0 {
+                format!(
+                    "; {} drawn in days, their sessions outside their temperature log",
+                    drawn.in_days
+                )
+            } else {
+                String::new()
+            }
         );
         return Ok(());
     }
@@ -86,6 +99,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print!("{}", render(&t));
     }
     if let Some(out) = &args.plot {
+        let axis = match &clocks {
+            None => TimeAxis::Days,
+            Some(c) => TimeAxis::DegreeDays(c.for_plant(plant).with_context(|| {
+                format!(
+                    "--degree-days: plant {plant} is timed by {}, which has no readings; import it \
+                     (a temperature log whose zone column says {:?})",
+                    crate::climate_zone::describe(c.zone_of(plant)),
+                    c.zone_of(plant)
+                )
+            })?),
+        };
         crate::sinks::plot::plot(&t, out, axis)?;
         eprintln!("plot written to {}", out.display());
     }

@@ -254,10 +254,14 @@ pub struct PlotFiles {
     pub in_days: usize,
 }
 
-/// Draws every plant with a session into `dir`, one PNG per plant; with
-/// degree-days, a plant the log does not cover is drawn in days and counted
-/// in [`PlotFiles::in_days`].
-pub fn plot_all(timelines: &[PlantTimeline], dir: &Path, axis: TimeAxis) -> anyhow::Result<PlotFiles> {
+/// Draws every plant with a session into `dir`, one PNG per plant, in days,
+/// or with `clocks` in degree-days of the plant's zone; a plant whose log does
+/// not cover it is then drawn in days and counted in [`PlotFiles::in_days`].
+pub fn plot_all(
+    timelines: &[PlantTimeline],
+    dir: &Path,
+    clocks: Option<&crate::climate_zone::ZoneClocks>,
+) -> anyhow::Result<PlotFiles> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut drawn = PlotFiles::default();
     let mut used = std::collections::HashSet::new();
@@ -274,6 +278,18 @@ pub fn plot_all(timelines: &[PlantTimeline], dir: &Path, axis: TimeAxis) -> anyh
             stem = format!("{}_{n}", file_stem(&t.plant));
         }
         let out = dir.join(format!("{stem}.png"));
+        let axis = match clocks {
+            None => TimeAxis::Days,
+            Some(c) => match c.for_plant(&t.plant) {
+                Some(clock) => TimeAxis::DegreeDays(clock),
+                None => {
+                    super::atomic::replace(&out, ".png", |tmp| plot(t, tmp, TimeAxis::Days))?;
+                    drawn.in_days += 1;
+                    drawn.files.insert(t.plant.clone(), format!("{stem}.png"));
+                    continue;
+                }
+            },
+        };
         let drawn_as = super::atomic::replace(&out, ".png", |tmp| plot(t, tmp, axis));
         if drawn_as.is_err() && matches!(axis, TimeAxis::DegreeDays(_)) {
             // Every x is worked out before drawing, so this is a plant the log does not cover.

@@ -155,6 +155,20 @@ ALTER TABLE events ADD COLUMN site_y REAL;
 ALTER TABLE events ADD COLUMN site_bbox TEXT;    -- JSON [x0, y0, x1, y1]
 ALTER TABLE events ADD COLUMN site_area INTEGER; -- its area, image pixels
 "#,
+    // 7: greenhouse compartments (crate::climate_zone), each with its own
+    // temperature log; '' is the facility's log, which every earlier reading was.
+    r#"
+CREATE TABLE climate_zoned (
+    zone     TEXT NOT NULL DEFAULT '',        -- [[timeline.zones]] name; '' = the facility's log
+    taken_at TEXT NOT NULL,                   -- facility local time, ISO 8601
+    temp_c   REAL NOT NULL,
+    source   TEXT NOT NULL,                   -- the CSV it came from
+    PRIMARY KEY (zone, taken_at)
+) WITHOUT ROWID;
+INSERT INTO climate_zoned (zone, taken_at, temp_c, source) SELECT '', taken_at, temp_c, source FROM climate;
+DROP TABLE climate;
+ALTER TABLE climate_zoned RENAME TO climate;
+"#,
 ];
 
 /// The schema version this build writes (`PRAGMA user_version` after [`migrate`]).

@@ -70,6 +70,17 @@ pub struct FileFacts {
     pub sha256: String,
 }
 
+/// One air-temperature reading of a greenhouse log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reading {
+    /// Its zone ([`crate::climate_zone`]); `""` for the facility's log.
+    pub zone: String,
+    /// When it was taken (facility local time).
+    pub taken_at: NaiveDateTime,
+    /// Air temperature, °C.
+    pub temp_c: f64,
+}
+
 /// A count to store, independent of the inference crate's types.
 #[derive(Debug, Clone)]
 pub struct CountRecord {
@@ -147,12 +158,17 @@ pub struct Store {
 }
 
 /// The `[timeline]` settings a fit depends on, as stored in `meta`.
-fn timeline_settings(tl: &crate::config::TimelineConfig) -> String {
+fn timeline_settings(tl: &crate::config::TimelineConfig, zones: &crate::climate_zone::ZoneRules) -> String {
     format!(
         // `leaf_sites`: where each new leaf emerged, added in schema 6; bumping
         // it refits every plant once so older events get their sites.
-        "fusion={};session_gap_minutes={};living_window={};death_penalty={};base_temp_c={};leaf_sites=2",
-        tl.fusion, tl.session_gap_minutes, tl.living_window, tl.death_penalty, tl.base_temp_c
+        "fusion={};session_gap_minutes={};living_window={};death_penalty={};base_temp_c={};leaf_sites=2{}",
+        tl.fusion,
+        tl.session_gap_minutes,
+        tl.living_window,
+        tl.death_penalty,
+        tl.base_temp_c,
+        zones.fingerprint()
     )
 }
 
@@ -186,7 +202,7 @@ impl Store {
         };
         // Changed timeline settings (in the config, or new defaults after an
         // upgrade) would otherwise leave plants that get no new image fitted the old way.
-        let fit = timeline_settings(tl);
+        let fit = timeline_settings(tl, &store.params.zones);
         let stored = store.stored_timeline_settings()?;
         if stored.as_deref() != Some(fit.as_str()) {
             let has_sessions: bool =
@@ -227,6 +243,11 @@ impl Store {
             fusion_name: String::new(),
             max_attempts: 0,
         })
+    }
+
+    /// Which temperature log times each plant (the config's `[[timeline.zones]]`).
+    pub fn zone_rules(&self) -> &crate::climate_zone::ZoneRules {
+        &self.params.zones
     }
 
     /// The underlying connection, for read queries of the sinks.
@@ -474,28 +495,27 @@ impl Store {
         Ok((rows.len(), plants.len()))
     }
 
-    /// Stores air temperatures (facility local time, °C) from `source`, in one
-    /// transaction; a reading at a time already logged is replaced. Every
-    /// plant's thermal phyllochron is then worked out again. Returns how many
-    /// plants have one.
+    /// Stores air temperatures from `source`, in one transaction; a reading
+    /// at a time its zone already logged is replaced. Every plant's thermal
+    /// phyllochron is then worked out again. Returns how many plants have one.
     pub fn import_climate(
         &mut self,
         source: &str,
-        readings: &[(NaiveDateTime, f64)],
+        readings: &[Reading],
         journal: Option<&str>,
     ) -> anyhow::Result<usize> {
         let now = now_utc();
         let tx = self
             .conn
             .transaction_with_behavior(TransactionBehavior::Immediate)?;
-        for (t, c) in readings {
+        for r in readings {
             tx.execute(
-                "INSERT INTO climate (taken_at, temp_c, source) VALUES (?1, ?2, ?3)
-                 ON CONFLICT (taken_at) DO UPDATE SET temp_c = excluded.temp_c, source = excluded.source",
-                params![iso(*t), c, source],
+                "INSERT INTO climate (zone, taken_at, temp_c, source) VALUES (?1, ?2, ?3, ?4)
+                 ON CONFLICT (zone, taken_at) DO UPDATE SET temp_c = excluded.temp_c, source = excluded.source",
+                params![r.zone, iso(r.taken_at), r.temp_c, source],
             )?;
         }
-        let with = refresh_thermal(&tx, self.params.base_temp_c)?;
+        let with = refresh_thermal(&tx, &self.params)?;
         if let Some(journal) = journal {
             tx.execute(
                 "INSERT OR REPLACE INTO imports (journal, source, rows, plants, imported_at)
@@ -551,7 +571,7 @@ impl Store {
             )?;
         }
         if temps > 0 {
-            refresh_thermal(&tx, self.params.base_temp_c)?;
+            refresh_thermal(&tx, &self.params)?;
         }
         tx.execute("DELETE FROM imports WHERE source = ?1", [source])?;
         tx.commit()?;
@@ -983,7 +1003,7 @@ fn recompute(
     }
     let last = tl.sessions.last();
     let events: Vec<(u32, NaiveDateTime)> = tl.events.iter().map(|e| (e.leaf, e.at)).collect();
-    let phyllochron_cd = thermal_phyllochron(tx, &events, params.base_temp_c)?;
+    let phyllochron_cd = thermal_phyllochron(tx, &events, params.base_temp_c, params.zones.zone_of(plant))?;
     tx.execute(
         "UPDATE plants SET sessions = ?2, last_taken_at = ?3, leaves_emerged = ?4, living = ?5,
              phyllochron_days = ?6, updated_at = ?7, phyllochron_cd = ?8 WHERE id = ?1",
@@ -1010,13 +1030,13 @@ fn recompute(
 
 /// Works out every plant's thermal phyllochron again (after the temperature
 /// log changed); returns how many plants have one.
-fn refresh_thermal(tx: &Transaction, base_temp_c: f64) -> anyhow::Result<usize> {
-    let plants: Vec<i64> = tx
-        .prepare("SELECT id FROM plants")?
-        .query_map([], |r| r.get(0))?
+fn refresh_thermal(tx: &Transaction, params: &TimelineParams) -> anyhow::Result<usize> {
+    let plants: Vec<(i64, String)> = tx
+        .prepare("SELECT id, name FROM plants")?
+        .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))?
         .collect::<Result<_, _>>()?;
     let mut with = 0;
-    for id in plants {
+    for (id, name) in plants {
         let events: Vec<(u32, NaiveDateTime)> = tx
             .prepare_cached("SELECT leaf, emerged_at FROM events WHERE plant_id = ?1 ORDER BY leaf")?
             .query_map([id], |r| Ok((r.get(0)?, r.get::<_, String>(1)?)))?
@@ -1025,7 +1045,7 @@ fn refresh_thermal(tx: &Transaction, base_temp_c: f64) -> anyhow::Result<usize> 
                 Ok((leaf, parse_iso(&at)?))
             })
             .collect::<anyhow::Result<_>>()?;
-        let cd = thermal_phyllochron(tx, &events, base_temp_c)?;
+        let cd = thermal_phyllochron(tx, &events, params.base_temp_c, params.zones.zone_of(&name))?;
         with += usize::from(cd.is_some());
         tx.execute(
             "UPDATE plants SET phyllochron_cd = ?2 WHERE id = ?1",
@@ -1036,11 +1056,12 @@ fn refresh_thermal(tx: &Transaction, base_temp_c: f64) -> anyhow::Result<usize> 
 }
 
 /// Degree-days per leaf over `events` (leaf, emergence), from the
-/// temperatures logged around them; `None` without a log that covers them.
+/// temperatures `zone` logged around them; `None` without a log that covers them.
 fn thermal_phyllochron(
     tx: &Transaction,
     events: &[(u32, NaiveDateTime)],
     base_temp_c: f64,
+    zone: &str,
 ) -> anyhow::Result<Option<f64>> {
     let (Some(first), Some(last)) = (events.iter().map(|e| e.1).min(), events.iter().map(|e| e.1).max())
     else {
@@ -1052,8 +1073,10 @@ fn thermal_phyllochron(
     // A day either side reaches the readings that bracket the first and last leaf.
     let margin = chrono::Duration::days(1);
     let readings: Vec<(String, f64)> = tx
-        .prepare_cached("SELECT taken_at, temp_c FROM climate WHERE taken_at BETWEEN ?1 AND ?2")?
-        .query_map(params![iso(first - margin), iso(last + margin)], |r| {
+        .prepare_cached(
+            "SELECT taken_at, temp_c FROM climate WHERE zone = ?3 AND taken_at BETWEEN ?1 AND ?2",
+        )?
+        .query_map(params![iso(first - margin), iso(last + margin), zone], |r| {
             Ok((r.get(0)?, r.get(1)?))
         })?
         .collect::<Result<_, _>>()?;

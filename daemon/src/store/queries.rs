@@ -113,9 +113,11 @@ pub struct LeafSiteRow {
     pub area: i64,
 }
 
-/// What the temperature log holds ([`Store::climate_summary`]).
+/// What one zone's temperature log holds ([`Store::climate_summary`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ClimateSummary {
+    /// The zone ([`crate::climate_zone`]); `""` for the facility's log.
+    pub zone: String,
     /// Readings.
     pub readings: i64,
     /// First reading (facility local time).
@@ -318,39 +320,43 @@ impl Store {
         )?)
     }
 
-    /// The temperature log: readings, first and last reading, and the
-    /// longest time between two readings in hours; `None` without one.
-    pub fn climate_summary(&self) -> anyhow::Result<Option<ClimateSummary>> {
-        let (readings, first, last): (i64, Option<String>, Option<String>) = self.conn.query_row(
-            "SELECT COUNT(*), MIN(taken_at), MAX(taken_at) FROM climate",
-            [],
-            |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
-        )?;
-        let (Some(first), Some(last)) = (first, last) else {
-            return Ok(None);
-        };
-        let longest_gap_hours: Option<f64> = self.conn.query_row(
+    /// Each zone's temperature log, the facility's first: readings, first and
+    /// last reading, and the longest time between two readings in hours.
+    /// Empty without a log.
+    pub fn climate_summary(&self) -> anyhow::Result<Vec<ClimateSummary>> {
+        let mut stmt = self.conn.prepare(
             // julianday is a float of days: rounded to a few seconds.
-            "SELECT ROUND(MAX((julianday(taken_at) - julianday(prev)) * 24), 3) FROM
-               (SELECT taken_at, LAG(taken_at) OVER (ORDER BY taken_at) AS prev FROM climate)",
-            [],
-            |r| r.get(0),
+            "SELECT zone, COUNT(*), MIN(taken_at), MAX(taken_at),
+                    ROUND(MAX((julianday(taken_at) - julianday(prev)) * 24), 3)
+             FROM (SELECT zone, taken_at,
+                          LAG(taken_at) OVER (PARTITION BY zone ORDER BY taken_at) AS prev FROM climate)
+             GROUP BY zone ORDER BY zone",
         )?;
-        Ok(Some(ClimateSummary {
-            readings,
-            first,
-            last,
-            longest_gap_hours: longest_gap_hours.unwrap_or(0.0),
-        }))
+        let rows = stmt
+            .query_map([], |r| {
+                Ok(ClimateSummary {
+                    zone: r.get(0)?,
+                    readings: r.get(1)?,
+                    first: r.get(2)?,
+                    last: r.get(3)?,
+                    longest_gap_hours: r.get::<_, Option<f64>>(4)?.unwrap_or(0.0),
+                })
+            })?
+            .collect::<Result<_, _>>()?;
+        Ok(rows)
     }
 
-    /// A thermal clock over the whole temperature log above `base_temp_c`;
-    /// `None` without a log.
-    pub fn thermal_clock(&self, base_temp_c: f64) -> anyhow::Result<Option<crate::thermal::ThermalClock>> {
+    /// A thermal clock over `zone`'s whole temperature log above
+    /// `base_temp_c`; `None` when that zone has no log.
+    pub fn thermal_clock(
+        &self,
+        base_temp_c: f64,
+        zone: &str,
+    ) -> anyhow::Result<Option<crate::thermal::ThermalClock>> {
         let readings = self
             .conn
-            .prepare("SELECT taken_at, temp_c FROM climate ORDER BY taken_at")?
-            .query_map([], |r| Ok((r.get::<_, String>(0)?, r.get::<_, f64>(1)?)))?
+            .prepare("SELECT taken_at, temp_c FROM climate WHERE zone = ?1 ORDER BY taken_at")?
+            .query_map([zone], |r| Ok((r.get::<_, String>(0)?, r.get::<_, f64>(1)?)))?
             .map(|r| {
                 let (t, c) = r?;
                 Ok((super::parse_iso(&t)?, c))

@@ -548,9 +548,7 @@ fn a_temperature_log_gives_the_phyllochron_in_degree_days() {
         "no log yet"
     );
     // A steady 22 °C, hourly, from two days before to two days after: 12 °Cd a day.
-    let log: Vec<(NaiveDateTime, f64)> = (-48..(15 * 24 + 48))
-        .map(|h| (day(0) + Duration::hours(h), 22.0))
-        .collect();
+    let log = steady_log("", 22.0);
     assert_eq!(
         s.import_climate("log.csv", &log, Some("2026-12-05T101500"))
             .unwrap(),
@@ -565,15 +563,120 @@ fn a_temperature_log_gives_the_phyllochron_in_degree_days() {
     let t = s.plant_timeline("P1").unwrap().unwrap();
     assert!((t.phyllochron_cd.unwrap() - 12.0 * t.phyllochron_days.unwrap()).abs() < 1e-6);
     // A log with a hole across the leaves gives none.
-    let holed: Vec<(NaiveDateTime, f64)> = log
+    let holed: Vec<Reading> = log
         .iter()
-        .filter(|(t, _)| *t < day(6) || *t > day(8))
+        .filter(|r| r.taken_at < day(6) || r.taken_at > day(8))
         .cloned()
         .collect();
     let other = tempfile::tempdir().unwrap();
     let mut h = open(&other);
     h.import("counts.csv", &rows, None).unwrap();
     assert_eq!(h.import_climate("holed.csv", &holed, None).unwrap(), 0);
+}
+
+/// `zone`'s log at a steady `temp_c`, hourly from two days before `day(0)`
+/// to two days after `day(15)`.
+fn steady_log(zone: &str, temp_c: f64) -> Vec<Reading> {
+    (-48..(15 * 24 + 48))
+        .map(|h| Reading {
+            zone: zone.into(),
+            taken_at: day(0) + Duration::hours(h),
+            temp_c,
+        })
+        .collect()
+}
+
+/// Two compartments at 16 and 28 °C, each with its own log, and a plant in
+/// neither on the facility's: the same leaf rate is 6, 18 and 12 °Cd a day.
+/// An older database's readings become the facility's log.
+#[test]
+fn each_zone_times_its_own_plants() {
+    let dir = tempfile::tempdir().unwrap();
+    // A schema-6 database with a facility log, as the last release wrote it.
+    {
+        std::fs::create_dir_all(db(&dir).parent().unwrap()).unwrap();
+        let mut conn = Connection::open(db(&dir)).unwrap();
+        for (i, sql) in migrations::MIGRATIONS[..6].iter().enumerate() {
+            let tx = conn.transaction().unwrap();
+            tx.execute_batch(sql).unwrap();
+            tx.pragma_update(None, "user_version", (i + 1) as i64).unwrap();
+            tx.commit().unwrap();
+        }
+        let mut insert = conn
+            .prepare("INSERT INTO climate (taken_at, temp_c, source) VALUES (?1, 22.0, 'old.csv')")
+            .unwrap();
+        for r in steady_log("", 22.0) {
+            insert.execute([iso(r.taken_at)]).unwrap();
+        }
+    }
+    let tl = TimelineConfig {
+        zones: vec![
+            crate::config::ZoneConfig {
+                name: "cool".into(),
+                plants: "^C-".into(),
+            },
+            crate::config::ZoneConfig {
+                name: "warm".into(),
+                plants: "^W-".into(),
+            },
+        ],
+        ..TimelineConfig::default()
+    };
+    let mut s = Store::open(&db(&dir), &tl, 3).unwrap();
+    assert_eq!(
+        s.climate_summary()
+            .unwrap()
+            .iter()
+            .map(|c| (c.zone.as_str(), c.readings))
+            .collect::<Vec<_>>(),
+        vec![("", 15 * 24 + 96)]
+    );
+    // A leaf every 3 days in each plant.
+    let rows: Vec<(String, NaiveDateTime, View, u32)> = ["C-1", "W-1", "X-1"]
+        .iter()
+        .flat_map(|p| {
+            (0..15).flat_map(move |d| {
+                (0..5).map(move |v| (p.to_string(), day(d), View::Side(v * 72), 4 + d as u32 / 3))
+            })
+        })
+        .collect();
+    s.import("counts.csv", &rows, None).unwrap();
+    let cd = |s: &Store, p: &str| s.plant_timeline(p).unwrap().unwrap().phyllochron_cd;
+    assert!(
+        (cd(&s, "X-1").unwrap() - 36.0).abs() < 0.01,
+        "{:?}",
+        cd(&s, "X-1")
+    );
+    assert_eq!(cd(&s, "C-1"), None, "the cool zone has no log yet");
+    let mut both = steady_log("cool", 16.0);
+    both.extend(steady_log("warm", 28.0));
+    assert_eq!(s.import_climate("zones.csv", &both, None).unwrap(), 3);
+    assert!(
+        (cd(&s, "C-1").unwrap() - 18.0).abs() < 0.01,
+        "{:?}",
+        cd(&s, "C-1")
+    );
+    assert!(
+        (cd(&s, "W-1").unwrap() - 54.0).abs() < 0.01,
+        "{:?}",
+        cd(&s, "W-1")
+    );
+    assert!((cd(&s, "X-1").unwrap() - 36.0).abs() < 0.01);
+    let zones: Vec<(String, i64)> = s
+        .climate_summary()
+        .unwrap()
+        .into_iter()
+        .map(|c| (c.zone, c.readings))
+        .collect();
+    assert_eq!(
+        zones.iter().map(|z| z.0.as_str()).collect::<Vec<_>>(),
+        ["", "cool", "warm"]
+    );
+    assert!(s.thermal_clock(10.0, "warm").unwrap().is_some());
+    // Taking the zones' file back leaves the facility's log alone.
+    assert_eq!(s.unimport("zones.csv").unwrap().1, 2 * (15 * 24 + 96));
+    assert_eq!(cd(&s, "W-1"), None);
+    assert!((cd(&s, "X-1").unwrap() - 36.0).abs() < 0.01);
 }
 
 /// A count whose leaf instances sit at `leaves` ((x, y) centres, 20 px
