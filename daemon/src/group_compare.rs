@@ -151,6 +151,7 @@ mod tests {
             plant: name.into(),
             phyllochron_days: Some(phyllochron),
             phyllochron_cd: None,
+            climate_zone: String::new(),
             sessions: vec![SessionRow {
                 start: "2026-11-01T08:00:00.000".into(),
                 views: BTreeMap::new(),

@@ -282,6 +282,7 @@ mod tests {
             plant: name.into(),
             phyllochron_days: phyllochron,
             phyllochron_cd: phyllochron.map(|d| d * 12.0),
+            climate_zone: String::new(),
             sessions: sessions
                 .iter()
                 .map(|&(start, emerged, living)| SessionRow {

@@ -148,6 +148,7 @@ mod tests {
             plant: name.into(),
             phyllochron_days: None,
             phyllochron_cd: None,
+            climate_zone: String::new(),
             sessions,
             events: Vec::new(),
             sites: Vec::new(),

@@ -163,7 +163,7 @@ fn operator_commands() {
     let plants = std::fs::read_to_string(d.join("state/exports/plants.csv")).unwrap();
     assert!(
         plants.starts_with(
-            "plant,sessions,first_session,last_session,leaves_emerged,living,leaves_lost,phyllochron_days,events,last_emergence,phyllochron_cd\r\n"
+            "plant,sessions,first_session,last_session,leaves_emerged,living,leaves_lost,phyllochron_days,events,last_emergence,phyllochron_cd,climate_zone\r\n"
         ),
         "{plants}"
     );
@@ -681,16 +681,16 @@ fn a_temperature_log_gives_degree_days_per_leaf() {
         text.lines()
             .next()
             .unwrap()
-            .ends_with(",last_emergence,phyllochron_cd"),
+            .ends_with(",last_emergence,phyllochron_cd,climate_zone"),
         "{text}"
     );
     // Leaves emerge at the same hour each day, so each day between two adds
     // exactly 13 °Cd: 26 for a leaf every two days, 65 for one every five.
     assert!(
-        text.contains("\r\nF-1,") && text.contains(",2026-11-20T22:00:00.000,26\r\n"),
+        text.contains("\r\nF-1,") && text.contains(",2026-11-20T22:00:00.000,26,\r\n"),
         "{text}"
     );
-    assert!(text.contains(",2026-11-20T22:00:00.000,65\r\n"), "{text}");
+    assert!(text.contains(",2026-11-20T22:00:00.000,65,\r\n"), "{text}");
     let rep: serde_json::Value =
         serde_json::from_str(&ok(&["groups", "-c", cfg, "--compare", "--json"])).unwrap();
     let f = &rep["summaries"][0]["phyllochron_cd"];
@@ -781,6 +781,29 @@ fn compartments_keep_their_own_temperature_logs() {
         "the facility's 13 °Cd a day"
     );
     assert_eq!(cd("S-3"), None, "the empty house has no log");
+    assert!(ok(&["timeline", "-c", cfg, "F-1"]).contains(" degree-days per leaf (zone hot-house)\n"));
+    let plants = d.join("plants.csv");
+    ok(&[
+        "export",
+        "-c",
+        cfg,
+        "--what",
+        "plants",
+        "--out",
+        plants.to_str().unwrap(),
+    ]);
+    let text = std::fs::read_to_string(&plants).unwrap();
+    assert!(
+        text.lines()
+            .next()
+            .unwrap()
+            .ends_with(",phyllochron_cd,climate_zone"),
+        "{text}"
+    );
+    assert!(
+        text.contains(",40,hot-house\r\n") && text.contains(",52,\r\n") && text.contains(",,empty-house\r\n"),
+        "{text}"
+    );
     let status = ok(&["status", "-c", cfg]);
     assert!(
         status.contains("climate:   1152 temperatures from 2026-10-30T00:00")

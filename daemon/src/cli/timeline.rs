@@ -168,7 +168,14 @@ pub fn render(t: &PlantTimeline) -> String {
     }
     match (t.phyllochron_days, t.phyllochron_cd) {
         (Some(p), Some(cd)) => {
-            s += &format!("phyllochron: {p:.2} days per leaf, {cd:.1} degree-days per leaf\n")
+            s += &format!(
+                "phyllochron: {p:.2} days per leaf, {cd:.1} degree-days per leaf{}\n",
+                if t.climate_zone.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (zone {})", t.climate_zone)
+                }
+            )
         }
         (Some(p), None) => s += &format!("phyllochron: {p:.2} days per leaf\n"),
         (None, _) => s += "phyllochron: n/a (fewer than two emergence events)\n",

@@ -168,6 +168,7 @@ mod tests {
             plant: plant.into(),
             phyllochron_days: None,
             phyllochron_cd: None,
+            climate_zone: String::new(),
             sessions: Vec::new(),
             events: Vec::new(),
             sites: vec![crate::store::LeafSiteRow {

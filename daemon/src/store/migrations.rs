@@ -168,6 +168,7 @@ CREATE TABLE climate_zoned (
 INSERT INTO climate_zoned (zone, taken_at, temp_c, source) SELECT '', taken_at, temp_c, source FROM climate;
 DROP TABLE climate;
 ALTER TABLE climate_zoned RENAME TO climate;
+ALTER TABLE plants ADD COLUMN climate_zone TEXT;  -- the zone whose log timed phyllochron_cd; '' = the facility's
 "#,
 ];
 

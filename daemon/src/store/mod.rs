@@ -1003,10 +1003,11 @@ fn recompute(
     }
     let last = tl.sessions.last();
     let events: Vec<(u32, NaiveDateTime)> = tl.events.iter().map(|e| (e.leaf, e.at)).collect();
-    let phyllochron_cd = thermal_phyllochron(tx, &events, params.base_temp_c, params.zones.zone_of(plant))?;
+    let zone = params.zones.zone_of(plant);
+    let phyllochron_cd = thermal_phyllochron(tx, &events, params.base_temp_c, zone)?;
     tx.execute(
         "UPDATE plants SET sessions = ?2, last_taken_at = ?3, leaves_emerged = ?4, living = ?5,
-             phyllochron_days = ?6, updated_at = ?7, phyllochron_cd = ?8 WHERE id = ?1",
+             phyllochron_days = ?6, updated_at = ?7, phyllochron_cd = ?8, climate_zone = ?9 WHERE id = ?1",
         params![
             plant_id,
             tl.sessions.len() as i64,
@@ -1015,7 +1016,8 @@ fn recompute(
             last.map(|s| s.living),
             tl.phyllochron_days,
             now,
-            phyllochron_cd
+            phyllochron_cd,
+            zone
         ],
     )?;
     Ok(Diff {
@@ -1045,11 +1047,12 @@ fn refresh_thermal(tx: &Transaction, params: &TimelineParams) -> anyhow::Result<
                 Ok((leaf, parse_iso(&at)?))
             })
             .collect::<anyhow::Result<_>>()?;
-        let cd = thermal_phyllochron(tx, &events, params.base_temp_c, params.zones.zone_of(&name))?;
+        let zone = params.zones.zone_of(&name);
+        let cd = thermal_phyllochron(tx, &events, params.base_temp_c, zone)?;
         with += usize::from(cd.is_some());
         tx.execute(
-            "UPDATE plants SET phyllochron_cd = ?2 WHERE id = ?1",
-            params![id, cd],
+            "UPDATE plants SET phyllochron_cd = ?2, climate_zone = ?3 WHERE id = ?1",
+            params![id, cd, zone],
         )?;
     }
     Ok(with)

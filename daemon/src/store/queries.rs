@@ -88,6 +88,9 @@ pub struct PlantTimeline {
     /// Degree-days per leaf above `[timeline] base_temp_c`, with a temperature
     /// log covering its leaves ([`crate::thermal`]).
     pub phyllochron_cd: Option<f64>,
+    /// The zone whose temperature log times it ([`crate::climate_zone`]);
+    /// `""` for the facility's.
+    pub climate_zone: String,
     /// Sessions: start, per-view counts, fused, leaves emerged, living.
     pub sessions: Vec<SessionRow>,
     /// Emergence events: leaf, estimated time, first seen.
@@ -383,12 +386,12 @@ impl Store {
 
     /// One plant's timeline as stored.
     pub fn plant_timeline(&self, plant: &str) -> anyhow::Result<Option<PlantTimeline>> {
-        let Some((id, phyllochron_days, phyllochron_cd)) = self
+        let Some((id, phyllochron_days, phyllochron_cd, climate_zone)) = self
             .conn
             .query_row(
-                "SELECT id, phyllochron_days, phyllochron_cd FROM plants WHERE name = ?1",
+                "SELECT id, phyllochron_days, phyllochron_cd, COALESCE(climate_zone, '') FROM plants WHERE name = ?1",
                 [plant],
-                |r| Ok((r.get::<_, i64>(0)?, r.get(1)?, r.get(2)?)),
+                |r| Ok((r.get::<_, i64>(0)?, r.get(1)?, r.get(2)?, r.get(3)?)),
             )
             .optional()?
         else {
@@ -446,6 +449,7 @@ impl Store {
             plant: plant.to_string(),
             phyllochron_days,
             phyllochron_cd,
+            climate_zone,
             sessions,
             events,
             sites: sites.into_iter().flatten().collect(),
