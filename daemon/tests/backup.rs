@@ -324,3 +324,66 @@ fn a_restore_takes_the_later_imports_again_unless_told_not_to() {
         "the undone import stays undone"
     );
 }
+
+/// A later import that no longer fits the config (its zone renamed since)
+/// is named by a restore, which still takes the other imports and fails at
+/// the end, so the operator fixes it and imports it again.
+#[test]
+fn a_restore_names_a_later_import_it_cannot_take_and_takes_the_rest() {
+    let site = Site::new("[[timeline.zones]]\nname = 'house-2'\nplants = '^P'\n", "");
+    let counts = site.tmp.path().join("counts.csv");
+    std::fs::write(
+        &counts,
+        "plant,timestamp,view,leaf_count\nP1,2026-11-01T10:00:00,SV_0,5\nP1,2026-11-03T10:00:00,SV_0,6\n",
+    )
+    .unwrap();
+    let first = site.tmp.path().join("first.csv");
+    std::fs::write(
+        &first,
+        "plant,timestamp,view,leaf_count\nP2,2026-10-30T10:00:00,SV_0,4\n",
+    )
+    .unwrap();
+    assert!(site.phyllo(&["import", first.to_str().unwrap()]).status.success());
+    let out = site.phyllo(&["backup"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let snap = std::fs::read_dir(site.state.join("backups"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let temps = site.tmp.path().join("house2.csv");
+    std::fs::write(
+        &temps,
+        "timestamp,temp_c,zone\n2026-11-01T00:00:00,21,house-2\n2026-11-01T01:00:00,22,house-2\n",
+    )
+    .unwrap();
+    for f in [&temps, &counts] {
+        let out = site.phyllo(&["import", f.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    }
+    // The zone is renamed in the config: the kept log names one it no longer declares.
+    let cfg = std::fs::read_to_string(&site.cfg).unwrap();
+    std::fs::write(&site.cfg, cfg.replace("name = 'house-2'", "name = 'house-two'")).unwrap();
+
+    let out = site.phyllo(&["restore", snap.to_str().unwrap()]);
+    let printed = String::from_utf8_lossy(&out.stdout);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{printed}");
+    assert!(
+        printed.contains("house2.csv (")
+            && printed.contains("zone 'house-2' is not declared")
+            && printed.contains("`phyllo import` it again"),
+        "{printed}"
+    );
+    assert!(
+        printed.contains("counts.csv again (2 counts for 1 plants"),
+        "{printed}"
+    );
+    assert!(
+        err.contains("1 of 2 imports made after the snapshot could not be taken again"),
+        "{err}"
+    );
+    assert_eq!(site.q("SELECT COUNT(*) FROM observations"), 3);
+    assert_eq!(site.q("SELECT COUNT(*) FROM climate"), 0);
+}

@@ -811,6 +811,25 @@ fn compartments_keep_their_own_temperature_logs() {
             && status.contains("climate:   zone empty-house: no temperatures yet"),
         "{status}"
     );
+    assert!(
+        !status.contains("days before its plants' newest session"),
+        "{status}"
+    );
+    // F-1 imaged a week after the hot house's log ends: the log is behind.
+    std::fs::write(
+        d.join("late.csv"),
+        "plant,timestamp,view,leaf_count\nF-1,2026-11-30T10:00:00,SV_0,15\n",
+    )
+    .unwrap();
+    ok(&["import", "-c", cfg, d.join("late.csv").to_str().unwrap()]);
+    let check = phyllo(&["status", "-c", cfg, "--check"]);
+    let line = String::from_utf8_lossy(&check.stdout);
+    assert!(
+        line.contains("zone hot-house's temperature log ends 7.4 days before its plants' newest session")
+            && !line.contains("the facility's temperature log ends"),
+        "{line}"
+    );
+    ok(&["import", "-c", cfg, "--undo", "late.csv"]);
     let png = d.join("plot.png");
     ok(&[
         "timeline",

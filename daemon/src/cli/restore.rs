@@ -45,17 +45,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &import_journal::dir(&config.state_dir()),
         &store.journaled_imports()?,
     )?;
+    // Each import is its own transaction: one that no longer fits the config
+    // (a zone since renamed, say) is named, and the others are still taken.
+    let mut failed = 0;
     for entry in &later {
         if args.no_reimport {
             println!("left out: {} (imported after the snapshot)", entry.file.display());
-        } else {
-            let done = super::import::take(&mut store, entry)?;
-            println!(
+            continue;
+        }
+        match super::import::take(&mut store, entry) {
+            Ok(done) => println!(
                 "imported: {} again ({done}, imported after the snapshot)",
                 entry.file.display()
-            );
+            ),
+            Err(e) => {
+                failed += 1;
+                println!(
+                    "failed:   {} ({e:#}); fix the cause and `phyllo import` it again",
+                    entry.file.display()
+                );
+            }
         }
     }
     println!("next:     start the service; it counts the images dropped since the snapshot again.");
+    if failed > 0 {
+        anyhow::bail!(
+            "{failed} of {} imports made after the snapshot could not be taken again (listed above); \
+             the snapshot and the other imports are in place",
+            later.len()
+        );
+    }
     Ok(())
 }

@@ -43,6 +43,9 @@ pub struct Health {
     pub failed_last_day: i64,
     /// Internal errors since the service started.
     pub internal_errors: i64,
+    /// Temperature logs that end more than two days before their plants'
+    /// newest session: (zone, hours behind).
+    pub logs_behind: Vec<(String, f64)>,
 }
 
 /// The findings, worst first; none means OK.
@@ -89,8 +92,20 @@ pub fn findings(h: &Health) -> Vec<(Level, String)> {
             ),
         ));
     }
+    for (zone, hours) in &h.logs_behind {
+        out.push((Level::Warning, log_behind(zone, *hours)));
+    }
     out.sort_by_key(|f| std::cmp::Reverse(f.0));
     out
+}
+
+/// "zone X's temperature log ends N days before its plants' newest session".
+fn log_behind(zone: &str, hours: f64) -> String {
+    format!(
+        "{} ends {:.1} days before its plants' newest session (import the latest log)",
+        crate::climate_zone::describe(zone),
+        hours / 24.0
+    )
 }
 
 /// The `--check` line and its exit code.
@@ -147,6 +162,7 @@ pub fn health(config: &crate::config::Config, store: &Store) -> anyhow::Result<H
             .get("internal_errors")
             .and_then(|v| v.parse().ok())
             .unwrap_or(0),
+        logs_behind: store.temperature_logs_behind(STALE_NIGHTLY_HOURS as f64)?,
     })
 }
 
@@ -274,6 +290,9 @@ fn show(args: Args) -> anyhow::Result<()> {
             }
         );
     }
+    for (zone, hours) in store.temperature_logs_behind(STALE_NIGHTLY_HOURS as f64)? {
+        println!("climate:   {}", log_behind(&zone, hours));
+    }
     for zone in &config.timeline.zones {
         if !climate.iter().any(|c| c.zone == zone.name) {
             println!(
@@ -397,5 +416,14 @@ mod tests {
             "{line}"
         );
         assert!(line.ends_with("no database snapshot"), "{line}");
+        let h = Health {
+            logs_behind: vec![("house-2".into(), 60.0)],
+            ..healthy()
+        };
+        assert_eq!(
+            check_line(&findings(&h)).0,
+            "phyllo WARNING: zone house-2's temperature log ends 2.5 days before its plants' newest session \
+             (import the latest log)"
+        );
     }
 }

@@ -349,6 +349,25 @@ impl Store {
         Ok(rows)
     }
 
+    /// Each zone's logs that end well before its plants' newest session:
+    /// (zone, hours from the log's last reading to that session), for the
+    /// zones with a log whose plants were imaged more than `hours` after it.
+    /// A log not imported lately stops timing new leaves without a word.
+    pub fn temperature_logs_behind(&self, hours: f64) -> anyhow::Result<Vec<(String, f64)>> {
+        let mut stmt = self.conn.prepare(
+            "SELECT c.zone, ROUND((julianday(p.newest) - julianday(c.last)) * 24, 1)
+             FROM (SELECT zone, MAX(taken_at) AS last FROM climate GROUP BY zone) c
+             JOIN (SELECT COALESCE(climate_zone, '') AS zone, MAX(last_taken_at) AS newest FROM plants
+                   GROUP BY 1) p ON p.zone = c.zone
+             WHERE (julianday(p.newest) - julianday(c.last)) * 24 > ?1
+             ORDER BY c.zone",
+        )?;
+        let rows = stmt
+            .query_map([hours], |r| Ok((r.get(0)?, r.get(1)?)))?
+            .collect::<Result<_, _>>()?;
+        Ok(rows)
+    }
+
     /// A thermal clock over `zone`'s whole temperature log above
     /// `base_temp_c`; `None` when that zone has no log.
     pub fn thermal_clock(
