@@ -285,6 +285,10 @@ pub struct GroupsConfig {
     pub pattern: Option<String>,
     /// The named groups that make a group, in order; empty means all of them.
     pub by: Vec<String>,
+    /// A named group of the pattern that holds the experiment's block
+    /// (replicate, bench, compartment): group comparisons are then made
+    /// within blocks and tested over them ([`crate::group_compare`]).
+    pub block: Option<String>,
 }
 
 /// `[backup]`: nightly snapshots of the database. The CSV exports hold the
@@ -517,6 +521,7 @@ mod tests {
             "[groups]",
             "pattern",
             "by",
+            "block",
         ];
         for k in keys {
             assert!(text.contains(k), "example config does not mention {k}");

@@ -4,7 +4,14 @@
 //! at each plant's latest session.
 //!
 //! Welch's test does not assume equal variances, which genotypes seldom
-//! have. With many groups, many pairs are tested, so each p-value is also
+//! have. Where the experiment is laid out in blocks (replicates, benches,
+//! compartments: `[groups] block`), plants of one block share its light,
+//! temperature and position, and a comparison across blocks mixes those
+//! into the difference. Then each pair is compared within each block the
+//! two groups share (the difference of their means there), and those
+//! differences are tested against zero over the blocks (a paired t-test on
+//! block means, the randomised complete block analysis of one pair); a block
+//! holding only one of the two adds nothing. With many groups, many pairs are tested, so each p-value is also
 //! given Holm-adjusted over the pairs of its measure: a pair with an
 //! adjusted p under 0.05 stays a difference after that many looks. The test
 //! treats plants as independent and the plant values as exact; phyllo's own
@@ -51,31 +58,47 @@ pub struct Comparison {
     pub p: f64,
     /// `p` Holm-adjusted over the pairs of this measure.
     pub p_holm: f64,
+    /// Blocks both groups share with a value, for a comparison within blocks;
+    /// `None` for Welch's test over plants.
+    pub blocks: Option<usize>,
 }
 
 /// Every pair of groups with at least two plants valued on each side and
 /// some spread, per measure; measures in [`MEASURES`] order, pairs in group
 /// order.
+/// With `[groups] block`, pairs are compared within blocks (at least two
+/// blocks shared, and some spread of the block differences).
 pub fn compare(rule: &GroupRule, plants: &[PlantTimeline]) -> Vec<Comparison> {
-    let mut values: BTreeMap<Vec<String>, [Vec<f64>; 3]> = BTreeMap::new();
+    // group → block ("" without blocks) → each measure's plant values.
+    let mut values: BTreeMap<Vec<String>, BTreeMap<String, [Vec<f64>; 3]>> = BTreeMap::new();
     for p in plants {
         let Some(group) = rule.group_of(&p.plant) else {
             continue;
         };
-        let v = values.entry(group).or_default();
+        let block = rule.block_of(&p.plant).unwrap_or_default();
+        let v = values.entry(group).or_default().entry(block).or_default();
         v[0].extend(p.phyllochron_days);
         v[1].extend(p.phyllochron_cd);
         if let Some(last) = p.sessions.last() {
             v[2].push(last.leaves_emerged);
         }
     }
-    let groups: Vec<(&Vec<String>, &[Vec<f64>; 3])> = values.iter().collect();
+    let blocked = rule.block_name().is_some();
+    let groups: Vec<(&Vec<String>, &BTreeMap<String, [Vec<f64>; 3]>)> = values.iter().collect();
     let mut out = Vec::new();
     for (m, measure) in MEASURES.iter().enumerate() {
         let first = out.len();
         for (i, (ga, va)) in groups.iter().enumerate() {
             for (gb, vb) in &groups[i + 1..] {
-                if let Some(c) = welch(&va[m], &vb[m]) {
+                let tested = if blocked {
+                    within_blocks(va, vb, m)
+                } else {
+                    let all = |v: &BTreeMap<String, [Vec<f64>; 3]>| -> Vec<f64> {
+                        v.values().flat_map(|x| x[m].iter().copied()).collect()
+                    };
+                    welch(&all(va), &all(vb))
+                };
+                if let Some(c) = tested {
                     out.push(Comparison {
                         measure,
                         a: (*ga).clone(),
@@ -88,6 +111,60 @@ pub fn compare(rule: &GroupRule, plants: &[PlantTimeline]) -> Vec<Comparison> {
         holm(&mut out[first..]);
     }
     out
+}
+
+/// The paired test over the blocks `a` and `b` share on measure `m`: each
+/// block's difference of group means, tested against zero; `None` with
+/// under two shared blocks or no spread of the differences.
+fn within_blocks(
+    a: &BTreeMap<String, [Vec<f64>; 3]>,
+    b: &BTreeMap<String, [Vec<f64>; 3]>,
+    m: usize,
+) -> Option<Comparison> {
+    let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len() as f64;
+    let (mut means_a, mut means_b, mut n_a, mut n_b) = (Vec::new(), Vec::new(), 0, 0);
+    for (block, va) in a {
+        let Some(vb) = b.get(block) else { continue };
+        if va[m].is_empty() || vb[m].is_empty() {
+            continue;
+        }
+        means_a.push(mean(&va[m]));
+        means_b.push(mean(&vb[m]));
+        n_a += va[m].len();
+        n_b += vb[m].len();
+    }
+    let n = means_a.len();
+    if n < 2 {
+        return None;
+    }
+    let d: Vec<f64> = means_a.iter().zip(&means_b).map(|(x, y)| x - y).collect();
+    let md = mean(&d);
+    let var = d.iter().map(|x| (x - md).powi(2)).sum::<f64>() / (n - 1) as f64;
+    if var <= 0.0 {
+        return None;
+    }
+    let se = (var / n as f64).sqrt();
+    let df = (n - 1) as f64;
+    let dist = StudentsT::new(0.0, 1.0, df).ok()?;
+    let t = md / se;
+    let p = (2.0 * (1.0 - dist.cdf(t.abs()))).clamp(0.0, 1.0);
+    let half = dist.inverse_cdf(0.975) * se;
+    Some(Comparison {
+        measure: "",
+        a: Vec::new(),
+        b: Vec::new(),
+        n_a,
+        n_b,
+        mean_a: mean(&means_a),
+        mean_b: mean(&means_b),
+        difference: md,
+        ci95: (md - half, md + half),
+        t,
+        df,
+        p,
+        p_holm: p,
+        blocks: Some(n),
+    })
 }
 
 /// Welch's test of `a` against `b`; `None` with under two values on a side
@@ -125,6 +202,7 @@ fn welch(a: &[f64], b: &[f64]) -> Option<Comparison> {
         df,
         p,
         p_holm: p,
+        blocks: None,
     })
 }
 
@@ -205,6 +283,7 @@ mod tests {
         let rule = GroupRule::from_config(&GroupsConfig {
             pattern: Some(r"^(?P<genotype>[a-z]+)-\d+$".into()),
             by: Vec::new(),
+            block: None,
         })
         .unwrap()
         .unwrap();
@@ -232,5 +311,64 @@ mod tests {
         );
         assert_eq!(got[1].measure, "leaves_emerged");
         assert!(got[1].difference > 4.0 && got[1].p_holm == got[1].p);
+    }
+
+    /// Four replicate blocks whose benches differ by a day per leaf: across
+    /// blocks the half-day genotype difference drowns (Welch), within them it
+    /// is plain.
+    #[test]
+    fn blocks_take_the_bench_out_of_the_difference() {
+        let cfg = |block: Option<&str>| GroupsConfig {
+            pattern: Some(r"^(?P<genotype>g\d)-(?P<rep>r\d)-\d$".into()),
+            by: vec!["genotype".into()],
+            block: block.map(String::from),
+        };
+        let plants = [
+            plant("g1-r1-1", 3.0, 10.0),
+            plant("g1-r2-1", 4.05, 10.0),
+            plant("g1-r3-1", 4.95, 10.0),
+            plant("g1-r4-1", 6.0, 10.0),
+            plant("g2-r1-1", 3.5, 11.0),
+            plant("g2-r2-1", 4.5, 11.0),
+            plant("g2-r3-1", 5.55, 12.0),
+            plant("g2-r4-1", 6.45, 11.0),
+            plant("g2-r5-1", 9.0, 11.0), // a block g1 is not in: no pair there
+        ];
+        let across = compare(&GroupRule::from_config(&cfg(None)).unwrap().unwrap(), &plants);
+        assert!(across[0].p > 0.2 && across[0].blocks.is_none(), "{:?}", across[0]);
+        let within = compare(
+            &GroupRule::from_config(&cfg(Some("rep"))).unwrap().unwrap(),
+            &plants,
+        );
+        let c = &within[0];
+        // Block differences −0.5, −0.45, −0.6, −0.45: mean −0.5, SD 0.0707,
+        // t = −0.5 / (0.0707 / 2) = −14.14 on 3 degrees of freedom.
+        assert_eq!(
+            (c.measure, c.blocks, c.n_a, c.n_b),
+            ("phyllochron_days", Some(4), 4, 4)
+        );
+        assert!(
+            (c.difference + 0.5).abs() < 1e-9 && (c.t + 14.142).abs() < 1e-2,
+            "{c:?}"
+        );
+        assert!(c.df == 3.0 && c.p < 0.001 && c.ci95.1 < 0.0, "{c:?}");
+        assert!(
+            (c.mean_a - 4.5).abs() < 1e-9 && (c.mean_b - 5.0).abs() < 1e-9,
+            "{c:?}"
+        );
+        let bad = GroupsConfig {
+            block: Some("genotype".into()),
+            ..cfg(None)
+        };
+        assert!(
+            GroupRule::from_config(&bad).is_err(),
+            "a block cannot also make the groups"
+        );
+        let unknown = GroupsConfig {
+            block: Some("bench".into()),
+            ..cfg(None)
+        };
+        let err = format!("{:#}", GroupRule::from_config(&unknown).unwrap_err());
+        assert!(err.contains("groups.block names \"bench\""), "{err}");
     }
 }

@@ -17,6 +17,7 @@ use crate::store::PlantTimeline;
 pub struct GroupRule {
     regex: Regex,
     by: Vec<String>,
+    block: Option<String>,
 }
 
 impl GroupRule {
@@ -46,12 +47,41 @@ impl GroupRule {
                 );
             }
         }
-        Ok(Some(GroupRule { regex, by }))
+        if let Some(block) = &cfg.block {
+            if !names.contains(block) {
+                bail!(
+                    "groups.block names {block:?}, which groups.pattern does not capture (it has: {})",
+                    names.join(", ")
+                );
+            }
+            if by.contains(block) {
+                bail!(
+                    "groups.block {block:?} is also in groups.by: a block cannot be compared within itself"
+                );
+            }
+        }
+        Ok(Some(GroupRule {
+            regex,
+            by,
+            block: cfg.block.clone(),
+        }))
     }
 
     /// The parts that make a group, in order (the CSV's first columns).
     pub fn columns(&self) -> &[String] {
         &self.by
+    }
+
+    /// The name of the block field (`[groups] block`), if set.
+    pub fn block_name(&self) -> Option<&str> {
+        self.block.as_deref()
+    }
+
+    /// The plant's block, `None` if its id does not match or no block is set.
+    pub fn block_of(&self, plant: &str) -> Option<String> {
+        let block = self.block.as_ref()?;
+        let caps = self.regex.captures(plant)?;
+        Some(caps.name(block).map_or("", |m| m.as_str()).to_string())
     }
 
     /// The plant's group (one value per [`Self::columns`]), `None` if its id
@@ -220,6 +250,7 @@ mod tests {
         GroupRule::from_config(&GroupsConfig {
             pattern: Some(pattern.into()),
             by: by.iter().map(|s| s.to_string()).collect(),
+            block: None,
         })
     }
 
@@ -254,6 +285,7 @@ mod tests {
         let by_alone = GroupsConfig {
             pattern: None,
             by: vec!["genotype".into()],
+            block: None,
         };
         assert!(GroupRule::from_config(&by_alone).is_err());
         assert!(GroupRule::from_config(&GroupsConfig::default())

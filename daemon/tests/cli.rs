@@ -598,7 +598,7 @@ fn groups_compare_tests_every_two_groups() {
     let csv_dir = d.join("csv");
     ok(&["groups", "-c", cfg, "--csv", csv_dir.to_str().unwrap()]);
     let written = std::fs::read_to_string(csv_dir.join("group_pairs.csv")).unwrap();
-    assert!(written.starts_with("measure,genotype_a,genotype_b,plants_a,plants_b,mean_a,mean_b,difference,ci95_low,ci95_high,t,df,p,p_holm\r\n"), "{written}");
+    assert!(written.starts_with("measure,genotype_a,genotype_b,plants_a,plants_b,mean_a,mean_b,difference,ci95_low,ci95_high,t,df,p,p_holm,blocks\r\n"), "{written}");
     assert_eq!(written.lines().count(), 3, "{written}");
 }
 
@@ -702,6 +702,50 @@ fn a_temperature_log_gives_degree_days_per_leaf() {
         .find(|c| c["measure"] == "phyllochron_cd")
         .unwrap();
     assert!(thermal["difference"].as_f64().unwrap() < -20.0, "{thermal}");
+}
+
+/// `[groups] block`: the same plants compared within replicate blocks (the
+/// number in each id), in the table, the JSON and `group_pairs.csv`.
+#[test]
+fn groups_compare_within_blocks() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // two_genotypes' ids are genotype-replicate: F-1 and S-1 stand in block 1.
+    let cfg = two_genotypes_with(d, "");
+    std::fs::write(
+        &cfg,
+        std::fs::read_to_string(&cfg).unwrap().replace(
+            "pattern = '^(?P<genotype>[A-Z]+)-\\d+$'",
+            "pattern = '^(?P<genotype>[A-Z]+)-(?P<rep>\\d+)$'\nby = ['genotype']\nblock = 'rep'",
+        ),
+    )
+    .unwrap();
+    let cfg = cfg.as_str();
+    let rep: serde_json::Value =
+        serde_json::from_str(&ok(&["groups", "-c", cfg, "--compare", "--json"])).unwrap();
+    let emerged = rep["pairs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["measure"] == "leaves_emerged")
+        .unwrap_or_else(|| panic!("{rep}"));
+    assert_eq!(emerged["blocks"], 3, "{emerged}");
+    assert_eq!(emerged["df"], 2.0, "{emerged}");
+    let table = ok(&["groups", "-c", cfg, "--compare"]);
+    assert!(
+        table.contains("compared within blocks of rep")
+            && table.contains("leaves_emerged\tF − S\t3 / 3 in 3 blocks\t+"),
+        "{table}"
+    );
+    let csv_dir = d.join("csv");
+    ok(&["groups", "-c", cfg, "--csv", csv_dir.to_str().unwrap()]);
+    let written = std::fs::read_to_string(csv_dir.join("group_pairs.csv")).unwrap();
+    assert!(
+        written
+            .lines()
+            .any(|l| l.starts_with("leaves_emerged,F,S,3,3,") && l.ends_with(",3")),
+        "{written}"
+    );
 }
 
 /// `timestamp,temp_c[,zone]` rows every 30 minutes from 30 October for 24

@@ -120,15 +120,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     if args.compare {
+        if let Some(block) = rule.block_name() {
+            println!("\ncompared within blocks of {block}: each block's difference of means, tested over the blocks");
+        }
         println!("\nmeasure\tgroups\tplants\tdifference (95 % CI)\tp\tp (Holm)");
         for c in &pairs {
             println!(
-                "{}\t{} − {}\t{} / {}\t{:+.2} ({:+.2} to {:+.2})\t{:.3}\t{:.3}{}",
+                "{}\t{} − {}\t{} / {}{}\t{:+.2} ({:+.2} to {:+.2})\t{:.3}\t{:.3}{}",
                 c.measure,
                 c.a.join("/"),
                 c.b.join("/"),
                 c.n_a,
                 c.n_b,
+                c.blocks.map_or(String::new(), |n| format!(" in {n} blocks")),
                 c.difference,
                 c.ci95.0,
                 c.ci95.1,

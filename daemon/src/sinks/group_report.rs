@@ -105,6 +105,7 @@ pub fn pairs_table(rule: &GroupRule, pairs: &[Comparison]) -> (Vec<String>, Vec<
         "df".into(),
         "p".into(),
         "p_holm".into(),
+        "blocks".into(),
     ]
     .to_vec();
     let rows = pairs
@@ -125,6 +126,7 @@ pub fn pairs_table(rule: &GroupRule, pairs: &[Comparison]) -> (Vec<String>, Vec<
                 format_real(c.df),
                 format!("{:.3e}", c.p),
                 format!("{:.3e}", c.p_holm),
+                c.blocks.map_or(String::new(), |n| n.to_string()),
             ]
         })
         .collect();
