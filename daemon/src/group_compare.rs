@@ -26,6 +26,9 @@ use statrs::distribution::{ContinuousCDF, StudentsT};
 use crate::groups::GroupRule;
 use crate::store::PlantTimeline;
 
+/// One group's plant values: block (`""` without blocks) → one list per measure.
+type Blocks = BTreeMap<String, [Vec<f64>; 3]>;
+
 /// The measures compared, as named in the CSV.
 pub const MEASURES: [&str; 3] = ["phyllochron_days", "phyllochron_cd", "leaves_emerged"];
 
@@ -69,8 +72,7 @@ pub struct Comparison {
 /// With `[groups] block`, pairs are compared within blocks (at least two
 /// blocks shared, and some spread of the block differences).
 pub fn compare(rule: &GroupRule, plants: &[PlantTimeline]) -> Vec<Comparison> {
-    // group → block ("" without blocks) → each measure's plant values.
-    let mut values: BTreeMap<Vec<String>, BTreeMap<String, [Vec<f64>; 3]>> = BTreeMap::new();
+    let mut values: BTreeMap<Vec<String>, Blocks> = BTreeMap::new();
     for p in plants {
         let Some(group) = rule.group_of(&p.plant) else {
             continue;
@@ -84,7 +86,7 @@ pub fn compare(rule: &GroupRule, plants: &[PlantTimeline]) -> Vec<Comparison> {
         }
     }
     let blocked = rule.block_name().is_some();
-    let groups: Vec<(&Vec<String>, &BTreeMap<String, [Vec<f64>; 3]>)> = values.iter().collect();
+    let groups: Vec<(&Vec<String>, &Blocks)> = values.iter().collect();
     let mut out = Vec::new();
     for (m, measure) in MEASURES.iter().enumerate() {
         let first = out.len();
@@ -93,9 +95,8 @@ pub fn compare(rule: &GroupRule, plants: &[PlantTimeline]) -> Vec<Comparison> {
                 let tested = if blocked {
                     within_blocks(va, vb, m)
                 } else {
-                    let all = |v: &BTreeMap<String, [Vec<f64>; 3]>| -> Vec<f64> {
-                        v.values().flat_map(|x| x[m].iter().copied()).collect()
-                    };
+                    let all =
+                        |v: &Blocks| -> Vec<f64> { v.values().flat_map(|x| x[m].iter().copied()).collect() };
                     welch(&all(va), &all(vb))
                 };
                 if let Some(c) = tested {
@@ -116,11 +117,7 @@ pub fn compare(rule: &GroupRule, plants: &[PlantTimeline]) -> Vec<Comparison> {
 /// The paired test over the blocks `a` and `b` share on measure `m`: each
 /// block's difference of group means, tested against zero; `None` with
 /// under two shared blocks or no spread of the differences.
-fn within_blocks(
-    a: &BTreeMap<String, [Vec<f64>; 3]>,
-    b: &BTreeMap<String, [Vec<f64>; 3]>,
-    m: usize,
-) -> Option<Comparison> {
+fn within_blocks(a: &Blocks, b: &Blocks, m: usize) -> Option<Comparison> {
     let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len() as f64;
     let (mut means_a, mut means_b, mut n_a, mut n_b) = (Vec::new(), Vec::new(), 0, 0);
     for (block, va) in a {
