@@ -44,6 +44,18 @@ pub struct Config {
     /// How plant ids map to groups (genotype, treatment) for group summaries.
     #[serde(default)]
     pub groups: GroupsConfig,
+    /// A folder of CSVs (temperature logs, people's counts) `phyllo import --dir` takes.
+    #[serde(default)]
+    pub import: ImportConfig,
+}
+
+/// `[import]`: where the greenhouse's climate computer (or people) leave CSVs
+/// for `phyllo import --dir`, which phyllo-import.timer runs hourly.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ImportConfig {
+    /// The folder; unset: `phyllo import --dir` needs one on its command line.
+    pub dir: Option<PathBuf>,
 }
 
 /// `[watch]`: intake from the drop directory.
@@ -337,6 +349,7 @@ impl Config {
             &mut cfg.inference.ort_lib,
             &mut cfg.export.dir,
             &mut cfg.backup.dir,
+            &mut cfg.import.dir,
         ]
         .into_iter()
         .flatten()
@@ -522,6 +535,7 @@ mod tests {
             "pattern",
             "by",
             "block",
+            "[import]",
         ];
         for k in keys {
             assert!(text.contains(k), "example config does not mention {k}");

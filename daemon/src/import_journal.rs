@@ -157,6 +157,34 @@ pub fn entries(journal: &Path) -> anyhow::Result<Vec<Entry>> {
     Ok(found.into_iter().map(|(_, e)| e).collect())
 }
 
+/// The newest kept copy of a CSV named `name`, an entry's or one set aside
+/// by `--undo`: (its path, true when undone). `phyllo import --dir` compares
+/// a folder's file with it to tell a changed file from one already taken.
+pub fn newest_copy(journal: &Path, name: &str) -> anyhow::Result<Option<(PathBuf, bool)>> {
+    let read = match std::fs::read_dir(journal) {
+        Ok(r) => r,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(e).with_context(|| format!("reading import journal {}", journal.display())),
+    };
+    let mut newest: Option<((NaiveDateTime, u32), PathBuf, bool)> = None;
+    for dir in read {
+        let dir = dir?;
+        let id = dir.file_name().to_string_lossy().into_owned();
+        let (stem, undone) = match id.strip_suffix(".undone") {
+            Some(stem) => (stem, true),
+            None => (id.as_str(), false),
+        };
+        let Some(key) = parse_id(stem) else {
+            continue;
+        };
+        let copy = dir.path().join(name);
+        if copy.is_file() && newest.as_ref().is_none_or(|n| key > n.0) {
+            newest = Some((key, copy, undone));
+        }
+    }
+    Ok(newest.map(|(_, path, undone)| (path, undone)))
+}
+
 /// The entries of `journal` not in `held` (a database's imports), oldest first.
 pub fn missing(journal: &Path, held: &BTreeSet<String>) -> anyhow::Result<Vec<Entry>> {
     Ok(entries(journal)?

@@ -748,6 +748,95 @@ fn groups_compare_within_blocks() {
     );
 }
 
+/// `phyllo import --dir`: a folder's new and changed CSVs, each taken once;
+/// one still being written waits, a bad one is named while the others are
+/// taken, one undone stays out until it changes, hidden and non-CSV files
+/// are left alone.
+#[test]
+fn import_dir_takes_new_and_changed_files_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (cfg, _) = site_config(d, "[watch]\nstable_secs = 1.0\n[import]\ndir = 'inbox'\n");
+    let cfg = cfg.as_str();
+    let inbox = d.join("inbox");
+    std::fs::create_dir_all(&inbox).unwrap();
+    let out = phyllo(&["import", "-c", cfg, "--dir", d.join("nowhere").to_str().unwrap()]);
+    assert!(
+        !out.status.success() && String::from_utf8_lossy(&out.stderr).contains("nowhere"),
+        "{out:?}"
+    );
+    let log = temperature_log(None, |h| if (6..18).contains(&h) { 28.0 } else { 18.0 });
+    std::fs::write(inbox.join("climate.csv"), &log).unwrap();
+    std::fs::write(
+        inbox.join("sheet.csv"),
+        "plant,timestamp,view,leaf_count\nP1,2026-11-01,human,5\nP1,2026-11-05,human,7\n",
+    )
+    .unwrap();
+    std::fs::write(
+        inbox.join("bad.csv"),
+        "timestamp,temp_c\n2026-11-01T00:00:00,21\n2026-11-01T00:30:00,hot\n",
+    )
+    .unwrap();
+    std::fs::write(inbox.join(".~lock.sheet.csv"), "not a sheet").unwrap();
+    std::fs::write(inbox.join("notes.txt"), "not a sheet").unwrap();
+
+    let run = || {
+        let out = phyllo(&["import", "-c", cfg, "--dir"]);
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+        )
+    };
+    let (ok_now, printed) = run();
+    assert!(
+        ok_now && printed.contains("waiting:  ") && printed.contains("0 files imported"),
+        "{printed}"
+    );
+    std::thread::sleep(std::time::Duration::from_millis(1100));
+    let (ok_now, printed) = run();
+    assert!(!ok_now, "bad.csv is refused: {printed}");
+    assert!(
+        printed.contains("bad.csv: ") && printed.contains("bad.csv:3: temp_c 'hot' is not a number"),
+        "{printed}"
+    );
+    assert!(printed.contains("2 files imported, 1 refused"), "{printed}");
+    assert_eq!(q(d, "SELECT COUNT(*) FROM climate"), 1152);
+    assert_eq!(q(d, "SELECT COUNT(*) FROM observations"), 2);
+
+    std::fs::remove_file(inbox.join("bad.csv")).unwrap();
+    let (ok_now, printed) = run();
+    assert!(
+        ok_now && printed.contains("0 files imported, 0 refused"),
+        "unchanged: {printed}"
+    );
+    // The climate computer rewrites its log with the next hour in it.
+    std::fs::write(
+        inbox.join("climate.csv"),
+        format!("{log}2026-11-23T00:00:00,20\n2026-11-23T00:30:00,20\n"),
+    )
+    .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1100));
+    let (ok_now, printed) = run();
+    assert!(ok_now && printed.contains("1 files imported"), "{printed}");
+    assert!(q(d, "SELECT COUNT(*) FROM climate") > 1152);
+    // Taken back: it stays out of later runs until it changes.
+    ok(&["import", "-c", cfg, "--undo", "sheet.csv"]);
+    let (ok_now, printed) = run();
+    assert!(
+        ok_now && printed.contains("undone:   ") && printed.contains("sheet.csv"),
+        "{printed}"
+    );
+    assert_eq!(q(d, "SELECT COUNT(*) FROM observations"), 0);
+}
+
+/// One number from the test site's database.
+fn q(d: &Path, sql: &str) -> i64 {
+    rusqlite::Connection::open(d.join("state/phyllo.sqlite"))
+        .unwrap()
+        .query_row(sql, [], |r| r.get(0))
+        .unwrap()
+}
+
 /// `timestamp,temp_c[,zone]` rows every 30 minutes from 30 October for 24
 /// days at `temp(hour)` °C.
 fn temperature_log(zone: Option<&str>, temp: impl Fn(u32) -> f64) -> String {

@@ -5,12 +5,14 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-const UNITS: [&str; 5] = [
+const UNITS: [&str; 7] = [
     "phyllo.service",
     "phyllo-export.service",
     "phyllo-backup.service",
+    "phyllo-import.service",
     "phyllo-export.timer",
     "phyllo-backup.timer",
+    "phyllo-import.timer",
 ];
 
 fn systemd_analyze() -> Option<PathBuf> {

@@ -23,7 +23,7 @@ pub struct Args {
     /// columns timestamp,temp_c and, where compartments keep logs of their
     /// own, zone (a `[[timeline.zones]]` name; empty: the facility's log). Timestamps: ISO 8601 (`2018-04-20T10:32:16`,
     /// a space instead of `T`, or a date alone for noon), facility local time.
-    #[arg(value_name = "OBS.csv", required_unless_present = "undo")]
+    #[arg(value_name = "OBS.csv", required_unless_present_any = ["undo", "dir"])]
     file: Option<PathBuf>,
     /// Take back everything imported from files of this name (a sheet
     /// imported by mistake): its counts or temperatures leave the database,
@@ -31,6 +31,11 @@ pub struct Args {
     /// restore does not bring it back.
     #[arg(long, value_name = "NAME.csv", conflicts_with = "file")]
     undo: Option<String>,
+    /// Take every CSV in this folder (default: the config's `[import] dir`)
+    /// that is new or changed since it was last taken; each is imported as
+    /// one file would be, a bad one is named and the others still taken.
+    #[arg(long, value_name = "DIR", num_args = 0..=1, conflicts_with_all = ["file", "undo"])]
+    dir: Option<Option<PathBuf>>,
 }
 
 /// Runs `phyllo import`: the CSV is checked, kept in the import journal,
@@ -39,26 +44,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let _writing = WritersLock::shared(&config.database)?;
     let journal = import_journal::dir(&config.state_dir());
-    let file = match (args.file, args.undo) {
-        (Some(file), _) => file,
-        (None, Some(name)) => return undo(&config, &journal, &name),
-        (None, None) => unreachable!("clap requires OBS.csv or --undo"),
+    let file = match (args.file, args.undo, args.dir) {
+        (Some(file), _, _) => file,
+        (None, Some(name), _) => return undo(&config, &journal, &name),
+        (None, None, Some(dir)) => return super::import_dir::run(&config, &journal, dir),
+        (None, None, None) => unreachable!("clap requires OBS.csv, --undo or --dir"),
     };
-    let (skipped, plants) = match kind(&file)? {
+    import_file(&config, &journal, &file)
+}
+
+/// Imports one CSV: checked, kept in the import journal, then stored, with
+/// the journal entry recorded beside its rows.
+pub fn import_file(
+    config: &crate::config::Config,
+    journal: &std::path::Path,
+    file: &std::path::Path,
+) -> anyhow::Result<()> {
+    let (skipped, plants) = match kind(file)? {
         Kind::Counts => {
-            let sheet = read_rows(&file)?;
+            let sheet = read_rows(file)?;
             let plants: std::collections::BTreeSet<String> = sheet.rows.into_iter().map(|r| r.0).collect();
             (sheet.skipped, plants)
         }
         Kind::Climate => {
             read_climate(
-                &file,
+                file,
                 &crate::climate_zone::ZoneRules::from_config(&config.timeline.zones)?,
             )?;
             (0, Default::default())
         }
     };
-    let kept = import_journal::keep(&journal, &file, chrono::Local::now().naive_local())?;
+    let kept = import_journal::keep(journal, file, chrono::Local::now().naive_local())?;
     let entry = kept.entry;
     // Plants the database has never seen, named after the import: in a
     // filled review sheet they are most likely typing errors.
@@ -74,7 +90,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Ok(done) => done,
         Err(e) => {
             if kept.copied {
-                import_journal::forget(&journal, &entry)?;
+                import_journal::forget(journal, &entry)?;
             }
             return Err(e);
         }

@@ -8,6 +8,7 @@ pub mod eval;
 pub mod export;
 pub mod groups;
 pub mod import;
+pub mod import_dir;
 pub mod recount;
 pub mod restore;
 pub mod review;
