@@ -7,6 +7,14 @@
 //! What was taken is told by the import journal, not the database: a file
 //! whose content equals the newest kept copy of its name is unchanged, and
 //! one equal to a copy set aside by `--undo` stays out until it changes.
+//!
+//! A climate computer that appends to one log and rewrites it every hour
+//! would leave a copy of the whole log in the journal each time, growing
+//! with the square of the season. Where the new content begins with the
+//! newest kept copy, that copy holds nothing the new one lacks (an import of
+//! the same name replaces its rows), so once the new one is stored the old
+//! entry is removed. A restore from an older snapshot then takes the newer,
+//! longer copy instead.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime};
@@ -72,17 +80,33 @@ pub fn run(config: &Config, journal: &Path, dir: Option<PathBuf>) -> anyhow::Res
 /// Imports `file` unless it is unchanged, undone or still being written.
 pub fn take(config: &Config, journal: &Path, file: &Path, settle: Duration) -> Outcome {
     match decide(journal, file, settle) {
-        Ok(None) => match super::import::import_file(config, journal, file) {
-            Ok(()) => Outcome::Imported,
+        Ok(Decision::Import { superseded }) => match super::import::import_file(config, journal, file) {
+            Ok(()) => {
+                if let Some(old) = superseded {
+                    // The new entry holds all of it; a failure here only leaves a copy more.
+                    if let Err(e) = std::fs::remove_dir_all(&old) {
+                        tracing::warn!(entry = %old.display(), "could not remove a superseded journal entry: {e}");
+                    }
+                }
+                Outcome::Imported
+            }
             Err(e) => Outcome::Failed(format!("{e:#}")),
         },
-        Ok(Some(skip)) => skip,
+        Ok(Decision::Skip(skip)) => skip,
         Err(e) => Outcome::Failed(format!("{e:#}")),
     }
 }
 
-/// Why `file` is left alone this time, or `None` to import it.
-fn decide(journal: &Path, file: &Path, settle: Duration) -> anyhow::Result<Option<Outcome>> {
+/// What to do with one file.
+enum Decision {
+    /// Import it; `superseded`: the journal entry its content extends.
+    Import { superseded: Option<PathBuf> },
+    /// Leave it alone this time.
+    Skip(Outcome),
+}
+
+/// Whether to import `file`, and which older entry it would supersede.
+fn decide(journal: &Path, file: &Path, settle: Duration) -> anyhow::Result<Decision> {
     let meta = std::fs::metadata(file).with_context(|| format!("reading {}", file.display()))?;
     let age = meta
         .modified()
@@ -90,22 +114,29 @@ fn decide(journal: &Path, file: &Path, settle: Duration) -> anyhow::Result<Optio
         .and_then(|m| SystemTime::now().duration_since(m).ok())
         .unwrap_or_default();
     if age < settle {
-        return Ok(Some(Outcome::Settling));
+        return Ok(Decision::Skip(Outcome::Settling));
     }
     let name = file
         .file_name()
         .with_context(|| format!("{} names no file", file.display()))?
         .to_string_lossy();
     let Some((copy, undone)) = import_journal::newest_copy(journal, &name)? else {
-        return Ok(None);
+        return Ok(Decision::Import { superseded: None });
     };
     let content = std::fs::read(file).with_context(|| format!("reading {}", file.display()))?;
     let kept = std::fs::read(&copy).with_context(|| format!("reading {}", copy.display()))?;
-    Ok((content == kept).then_some(if undone {
-        Outcome::Undone
+    Ok(if content == kept {
+        Decision::Skip(if undone {
+            Outcome::Undone
+        } else {
+            Outcome::Unchanged
+        })
     } else {
-        Outcome::Unchanged
-    }))
+        let superseded = (!undone && content.starts_with(&kept))
+            .then(|| copy.parent().map(Path::to_path_buf))
+            .flatten();
+        Decision::Import { superseded }
+    })
 }
 
 /// The folder's `*.csv` files (not hidden ones: editors' and copiers'
