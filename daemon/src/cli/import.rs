@@ -66,6 +66,7 @@ pub fn import_file(
             let plants: std::collections::BTreeSet<String> = sheet.rows.into_iter().map(|r| r.0).collect();
             (sheet.skipped, plants)
         }
+        Kind::Reassign => (0, read_moves(file)?.into_iter().map(|m| m.1).collect()),
         Kind::Climate => {
             read_climate(
                 file,
@@ -126,17 +127,28 @@ pub fn import_file(
 /// `phyllo import --undo NAME`.
 fn undo(config: &crate::config::Config, journal: &std::path::Path, name: &str) -> anyhow::Result<()> {
     let mut store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
-    let (counts, temps, plants) = store.unimport(name)?;
+    let back = store.unimport(name)?;
     let retired = import_journal::retire(journal, name)?;
-    if counts + temps == 0 && retired == 0 {
+    if back.counts + back.temperatures + back.images == 0 && retired == 0 {
         bail!(
             "nothing was imported from a file named {name:?} into {}",
             config.database.display()
         );
     }
     println!(
-        "took back {counts} counts and {temps} temperatures imported from {name}; {plants} plants refitted; \
+        "took back {} counts and {} temperatures imported from {name}{}; {} plants refitted; \
          {retired} journal entries set aside (as <entry>.undone in {})",
+        back.counts,
+        back.temperatures,
+        if back.images > 0 {
+            format!(
+                ", and moved {} images back to the plants they came from",
+                back.images
+            )
+        } else {
+            String::new()
+        },
+        back.plants,
         journal.display()
     );
     Ok(())
@@ -149,15 +161,20 @@ pub enum Kind {
     Counts,
     /// Air temperatures: `timestamp,temp_c`.
     Climate,
+    /// Images moved to another plant: `image,plant` ([`crate::store`]'s reassign).
+    Reassign,
 }
 
 /// Reads the header of `path`: a `temp_c` column without a `leaf_count`
-/// makes a temperature log, anything else is read as counts.
+/// makes a temperature log, `image` and `plant` without one a sheet of
+/// images to move, anything else is read as counts.
 pub fn kind(path: &std::path::Path) -> anyhow::Result<Kind> {
     let (_, headers) = open_csv(path)?;
     let has = |name: &str| headers.iter().any(|h| h.eq_ignore_ascii_case(name));
     Ok(if has("temp_c") && !has("leaf_count") {
         Kind::Climate
+    } else if has("image") && has("plant") && !has("leaf_count") {
+        Kind::Reassign
     } else {
         Kind::Counts
     })
@@ -170,6 +187,13 @@ pub fn take(store: &mut Store, entry: &import_journal::Entry) -> anyhow::Result<
             let sheet = read_rows(&entry.file)?;
             let (n, plants) = store.import(&entry.source(), &sheet.rows, Some(&entry.id))?;
             Ok(format!("{n} counts for {plants} plants"))
+        }
+        Kind::Reassign => {
+            let moves = read_moves(&entry.file)?;
+            let (images, plants) = store
+                .reassign(&entry.source(), &moves, Some(&entry.id))
+                .with_context(|| format!("{}", entry.file.display()))?;
+            Ok(format!("{images} image moves ({plants} plants refitted)"))
         }
         Kind::Climate => {
             let readings = read_climate(&entry.file, store.zone_rules())?;
@@ -241,6 +265,34 @@ pub fn read_climate(
             taken_at,
             temp_c: temp,
         });
+    }
+    Ok(out)
+}
+
+/// Reads a sheet of images to move (`image,plant`: the image's path as
+/// `images.csv` gives it, the plant it belongs to); errors name the file,
+/// line and problem.
+pub fn read_moves(path: &std::path::Path) -> anyhow::Result<Vec<(String, String)>> {
+    let (mut rdr, headers) = open_csv(path)?;
+    let col = |name: &str| headers.iter().position(|h| h.eq_ignore_ascii_case(name));
+    let (Some(ci), Some(cp)) = (col("image"), col("plant")) else {
+        bail!(
+            "{}: a sheet of images to move needs image,plant columns",
+            path.display()
+        );
+    };
+    let mut out = Vec::new();
+    for (i, rec) in rdr.records().enumerate() {
+        let line = i + 2;
+        let rec = rec.with_context(|| format!("{}:{line}", path.display()))?;
+        let (image, plant) = (rec.get(ci).unwrap_or(""), rec.get(cp).unwrap_or(""));
+        if image.is_empty() || plant.is_empty() {
+            bail!(
+                "{}:{line}: an image and the plant it belongs to are both needed",
+                path.display()
+            );
+        }
+        out.push((image.to_string(), plant.to_string()));
     }
     Ok(out)
 }

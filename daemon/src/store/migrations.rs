@@ -169,6 +169,17 @@ INSERT INTO climate_zoned (zone, taken_at, temp_c, source) SELECT '', taken_at, 
 DROP TABLE climate;
 ALTER TABLE climate_zoned RENAME TO climate;
 ALTER TABLE plants ADD COLUMN climate_zone TEXT;  -- the zone whose log timed phyllochron_cd; '' = the facility's
+-- Images moved to another plant by an `image,plant` sheet (crate::store::reassign),
+-- kept so `phyllo import --undo SHEET` moves them back.
+CREATE TABLE reassignments (
+    id            INTEGER PRIMARY KEY,
+    image_id      INTEGER NOT NULL REFERENCES images(id),
+    from_plant_id INTEGER REFERENCES plants(id),
+    to_plant_id   INTEGER NOT NULL REFERENCES plants(id),
+    source        TEXT NOT NULL,                -- the sheet's file name
+    moved_at      TEXT NOT NULL                 -- ISO 8601, UTC
+);
+CREATE INDEX reassignments_source ON reassignments(source);
 "#,
 ];
 

@@ -18,6 +18,7 @@
 mod lock;
 pub mod migrations;
 mod queries;
+mod reassign;
 mod recount;
 mod site_rows;
 
@@ -68,6 +69,19 @@ pub struct FileFacts {
     pub mtime: Option<String>,
     /// SHA-256 of the content, hex.
     pub sha256: String,
+}
+
+/// What [`Store::unimport`] took back.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Unimported {
+    /// Counts removed.
+    pub counts: usize,
+    /// Temperatures removed.
+    pub temperatures: usize,
+    /// Images moved back to the plant they were moved from.
+    pub images: usize,
+    /// Plants refitted.
+    pub plants: usize,
 }
 
 /// One air-temperature reading of a greenhouse log.
@@ -531,7 +545,7 @@ impl Store {
     /// and temperatures), refitting the plants it touched. The image counts
     /// and other imports stay. Returns (counts removed, temperatures removed,
     /// plants refitted).
-    pub fn unimport(&mut self, source: &str) -> anyhow::Result<(usize, usize, usize)> {
+    pub fn unimport(&mut self, source: &str) -> anyhow::Result<Unimported> {
         let now = now_utc();
         let model_id = format!("import:{source}");
         let tx = self
@@ -549,6 +563,13 @@ impl Store {
             [&model_id],
         )?;
         let temps = tx.execute("DELETE FROM climate WHERE source = ?1", [source])?;
+        let (images, moved_plants) = Store::unassign(&tx, source)?;
+        let mut plants = plants;
+        for p in moved_plants {
+            if !plants.contains(&p) {
+                plants.push(p);
+            }
+        }
         for (id, name) in &plants {
             recompute(
                 &tx,
@@ -564,7 +585,7 @@ impl Store {
                 &FeedRow {
                     kind: "import".into(),
                     plant: Some(name.clone()),
-                    message: Some(format!("counts imported from {source} taken back")),
+                    message: Some(format!("what {source} imported or moved was taken back")),
                     ..FeedRow::default()
                 },
                 &now,
@@ -575,7 +596,12 @@ impl Store {
         }
         tx.execute("DELETE FROM imports WHERE source = ?1", [source])?;
         tx.commit()?;
-        Ok((counts, temps, plants.len()))
+        Ok(Unimported {
+            counts,
+            temperatures: temps,
+            images,
+            plants: plants.len(),
+        })
     }
 
     /// The import-journal entries this database holds.

@@ -674,7 +674,7 @@ fn each_zone_times_its_own_plants() {
     );
     assert!(s.thermal_clock(10.0, "warm").unwrap().is_some());
     // Taking the zones' file back leaves the facility's log alone.
-    assert_eq!(s.unimport("zones.csv").unwrap().1, 2 * (15 * 24 + 96));
+    assert_eq!(s.unimport("zones.csv").unwrap().temperatures, 2 * (15 * 24 + 96));
     assert_eq!(cd(&s, "W-1"), None);
     assert!((cd(&s, "X-1").unwrap() - 36.0).abs() < 0.01);
 }
