@@ -11,9 +11,9 @@
 //! A climate computer that appends to one log and rewrites it every hour
 //! would leave a copy of the whole log in the journal each time, growing
 //! with the square of the season. Where the new content begins with the
-//! newest kept copy, that copy holds nothing the new one lacks (an import of
-//! the same name replaces its rows), so once the new one is stored the old
-//! entry is removed. A restore from an older snapshot then takes the newer,
+//! newest kept copy, that copy holds no row the new one lacks, and taking
+//! the new one again stores every row the old one did, so once the new one
+//! is stored the old entry is removed. A restore from an older snapshot then takes the newer,
 //! longer copy instead.
 
 use std::path::{Path, PathBuf};
