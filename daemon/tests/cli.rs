@@ -972,6 +972,8 @@ fn compartments_keep_their_own_temperature_logs() {
             && !line.contains("the facility's temperature log ends"),
         "{line}"
     );
+    let status: serde_json::Value = serde_json::from_str(&ok(&["status", "-c", cfg, "--json"])).unwrap();
+    assert_eq!(status["climate_behind_hours"]["hot-house"], 178.5, "{status}");
     ok(&["import", "-c", cfg, "--undo", "late.csv"]);
     let png = d.join("plot.png");
     ok(&[

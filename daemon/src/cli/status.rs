@@ -231,6 +231,10 @@ fn show(args: Args) -> anyhow::Result<()> {
             "timeline": timeline,
             "sessions_in_doubt": in_doubt,
             "climate": climate,
+            "climate_behind_hours": store
+                .temperature_logs_behind(STALE_NIGHTLY_HOURS as f64)?
+                .into_iter()
+                .collect::<std::collections::BTreeMap<String, f64>>(),
             "last_image": last,
             "recent_failures": failures,
             "counts_with_other_settings": other_settings,
