@@ -227,6 +227,7 @@ mod tests {
             phyllochron_days: Some(phyllochron),
             phyllochron_cd: None,
             climate_zone: String::new(),
+            next_leaf: None,
             sessions: vec![SessionRow {
                 start: "2026-11-01T08:00:00.000".into(),
                 views: BTreeMap::new(),

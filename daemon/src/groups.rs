@@ -315,6 +315,7 @@ mod tests {
             phyllochron_days: phyllochron,
             phyllochron_cd: phyllochron.map(|d| d * 12.0),
             climate_zone: String::new(),
+            next_leaf: None,
             sessions: sessions
                 .iter()
                 .map(|&(start, emerged, living)| SessionRow {

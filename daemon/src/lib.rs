@@ -23,6 +23,7 @@ pub mod config;
 pub mod counting;
 pub mod disk;
 pub mod evaluation;
+pub mod forecast;
 pub mod group_compare;
 pub mod groups;
 pub mod import_journal;

@@ -149,6 +149,7 @@ mod tests {
             phyllochron_days: None,
             phyllochron_cd: None,
             climate_zone: String::new(),
+            next_leaf: None,
             sessions,
             events: Vec::new(),
             sites: Vec::new(),

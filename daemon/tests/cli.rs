@@ -163,7 +163,7 @@ fn operator_commands() {
     let plants = std::fs::read_to_string(d.join("state/exports/plants.csv")).unwrap();
     assert!(
         plants.starts_with(
-            "plant,sessions,first_session,last_session,leaves_emerged,living,leaves_lost,phyllochron_days,events,last_emergence,phyllochron_cd,climate_zone\r\n"
+            "plant,sessions,first_session,last_session,leaves_emerged,living,leaves_lost,phyllochron_days,events,last_emergence,phyllochron_cd,climate_zone,next_leaf,next_leaf_expected\r\n"
         ),
         "{plants}"
     );
@@ -681,16 +681,16 @@ fn a_temperature_log_gives_degree_days_per_leaf() {
         text.lines()
             .next()
             .unwrap()
-            .ends_with(",last_emergence,phyllochron_cd,climate_zone"),
+            .ends_with(",last_emergence,phyllochron_cd,climate_zone,next_leaf,next_leaf_expected"),
         "{text}"
     );
     // Leaves emerge at the same hour each day, so each day between two adds
     // exactly 13 °Cd: 26 for a leaf every two days, 65 for one every five.
     assert!(
-        text.contains("\r\nF-1,") && text.contains(",2026-11-20T22:00:00.000,26,\r\n"),
+        text.contains("\r\nF-1,") && text.contains(",2026-11-20T22:00:00.000,26,,"),
         "{text}"
     );
-    assert!(text.contains(",2026-11-20T22:00:00.000,65,\r\n"), "{text}");
+    assert!(text.contains(",2026-11-20T22:00:00.000,65,,"), "{text}");
     let rep: serde_json::Value =
         serde_json::from_str(&ok(&["groups", "-c", cfg, "--compare", "--json"])).unwrap();
     let f = &rep["summaries"][0]["phyllochron_cd"];
@@ -940,11 +940,11 @@ fn compartments_keep_their_own_temperature_logs() {
         text.lines()
             .next()
             .unwrap()
-            .ends_with(",phyllochron_cd,climate_zone"),
+            .ends_with(",phyllochron_cd,climate_zone,next_leaf,next_leaf_expected"),
         "{text}"
     );
     assert!(
-        text.contains(",40,hot-house\r\n") && text.contains(",52,\r\n") && text.contains(",,empty-house\r\n"),
+        text.contains(",40,hot-house,") && text.contains(",52,,") && text.contains(",,empty-house,"),
         "{text}"
     );
     let status = ok(&["status", "-c", cfg]);

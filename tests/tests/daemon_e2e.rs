@@ -782,3 +782,67 @@ fn phyllochron_in_degree_days_holds_across_climates() {
         "degree-days per leaf should not: {cool:?} {warm:?}"
     );
 }
+
+/// `phyllo`'s next-leaf forecast (`crate::forecast`: one phyllochron after
+/// the last leaf), scored against the generator's true emergence times: the
+/// sequence's true living-leaf counts are cut at every second day from day
+/// 10 to 26, each cut imported into a fresh store as if that day were today,
+/// and every plant's forecast leaf is looked up in the truth.
+#[test]
+fn next_leaf_forecast_against_the_truth() {
+    let (target, phyllo, gen) = binaries();
+    let (_, truth) = sequence_truth_dir(&target, &gen, (8, 30, 13, 14), Some("19"));
+    let first_day = truth.iter().map(|t| t["date"].clone()).min().unwrap();
+    let last_of: BTreeMap<&String, &BTreeMap<String, String>> =
+        truth.iter().map(|t| (&t["plant"], t)).collect();
+    let (mut err, mut bias, mut n) = (0.0, 0.0, 0.0);
+    for cut in [10.0, 12.0, 14.0, 16.0, 18.0, 20.0, 22.0, 24.0, 26.0] {
+        let seen: Vec<BTreeMap<String, String>> = truth
+            .iter()
+            .filter(|t| days_between(&first_day, &t["date"]) < cut)
+            .cloned()
+            .collect();
+        let (store, cfg) = fresh_store("");
+        let obs = store.path().join("counts.csv");
+        std::fs::write(&obs, true_counts_in_five_views(&seen)).unwrap();
+        let plants_csv = store.path().join("plants.csv");
+        for args in [
+            vec!["import".as_ref(), "-c".as_ref(), cfg.as_os_str(), obs.as_os_str()],
+            vec![
+                "export".as_ref(),
+                "-c".as_ref(),
+                cfg.as_os_str(),
+                "--what".as_ref(),
+                "plants".as_ref(),
+                "--out".as_ref(),
+                plants_csv.as_os_str(),
+            ],
+        ] {
+            let st = Command::new(&phyllo).args(&args).output().unwrap();
+            assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+        }
+        for row in read_csv(&plants_csv) {
+            let Ok(leaf) = row["next_leaf"].parse::<usize>() else {
+                continue;
+            };
+            let Some(true_at) = last_of[&row["plant"]]["emergence_at"].split(';').nth(leaf - 1) else {
+                continue;
+            };
+            if true_at.is_empty() {
+                continue;
+            }
+            let off =
+                days_between(&first_day, &row["next_leaf_expected"]) - days_between(&first_day, true_at);
+            err += off.abs();
+            bias += off;
+            n += 1.0;
+        }
+    }
+    eprintln!(
+        "next-leaf forecast over {n} plant-cuts: mean absolute error {:.2} days, bias {:+.2}",
+        err / n,
+        bias / n
+    );
+    assert!(n >= 40.0, "only {n} forecasts scored");
+    assert!(err / n < 1.2, "forecast off by {:.2} days on average", err / n);
+}

@@ -180,5 +180,29 @@ pub fn render(t: &PlantTimeline) -> String {
         (Some(p), None) => s += &format!("phyllochron: {p:.2} days per leaf\n"),
         (None, _) => s += "phyllochron: n/a (fewer than two emergence events)\n",
     }
+    if let Some((leaf, at)) = &t.next_leaf {
+        s += &format!(
+            "next leaf:   {leaf} expected about {} (one phyllochron after the last){}\n",
+            at.get(..16).unwrap_or(at),
+            overdue(at, t.sessions.last().map(|x| x.start.as_str()))
+        );
+    }
     s
+}
+
+/// ", not seen by DATE (N days after it was due)" when the last session is
+/// past the expected time: a late leaf, a stressed plant, or the flag leaf.
+fn overdue(expected: &str, last_session: Option<&str>) -> String {
+    let (Ok(at), Some(Ok(last))) = (
+        crate::store::parse_iso(expected),
+        last_session.map(crate::store::parse_iso),
+    ) else {
+        return String::new();
+    };
+    let late = (last - at).num_hours() as f64 / 24.0;
+    if late > 0.0 {
+        format!("; not counted by the last session, {late:.1} days after it was due")
+    } else {
+        String::new()
+    }
 }

@@ -61,7 +61,7 @@ fn query(kind: &str) -> anyhow::Result<&'static str> {
                     p.phyllochron_days,
                     (SELECT COUNT(*) FROM events e WHERE e.plant_id = p.id) AS events,
                     (SELECT MAX(e.emerged_at) FROM events e WHERE e.plant_id = p.id) AS last_emergence,
-                    p.phyllochron_cd, p.climate_zone
+                    p.phyllochron_cd, p.climate_zone, p.next_leaf, p.next_leaf_at AS next_leaf_expected
              FROM plants p
              WHERE ?1 IS NULL OR p.last_taken_at >= ?1
              ORDER BY p.name"

@@ -169,6 +169,7 @@ mod tests {
             phyllochron_days: None,
             phyllochron_cd: None,
             climate_zone: String::new(),
+            next_leaf: None,
             sessions: Vec::new(),
             events: Vec::new(),
             sites: vec![crate::store::LeafSiteRow {

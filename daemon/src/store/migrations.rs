@@ -180,6 +180,8 @@ CREATE TABLE reassignments (
     moved_at      TEXT NOT NULL                 -- ISO 8601, UTC
 );
 CREATE INDEX reassignments_source ON reassignments(source);
+ALTER TABLE plants ADD COLUMN next_leaf INTEGER;     -- crate::forecast: the leaf that comes next
+ALTER TABLE plants ADD COLUMN next_leaf_at TEXT;     -- and when it should appear (facility local time)
 "#,
 ];
 

@@ -1031,9 +1031,11 @@ fn recompute(
     let events: Vec<(u32, NaiveDateTime)> = tl.events.iter().map(|e| (e.leaf, e.at)).collect();
     let zone = params.zones.zone_of(plant);
     let phyllochron_cd = thermal_phyllochron(tx, &events, params.base_temp_c, zone)?;
+    let next = crate::forecast::next_leaf(&events, tl.phyllochron_days);
     tx.execute(
         "UPDATE plants SET sessions = ?2, last_taken_at = ?3, leaves_emerged = ?4, living = ?5,
-             phyllochron_days = ?6, updated_at = ?7, phyllochron_cd = ?8, climate_zone = ?9 WHERE id = ?1",
+             phyllochron_days = ?6, updated_at = ?7, phyllochron_cd = ?8, climate_zone = ?9,
+             next_leaf = ?10, next_leaf_at = ?11 WHERE id = ?1",
         params![
             plant_id,
             tl.sessions.len() as i64,
@@ -1043,7 +1045,9 @@ fn recompute(
             tl.phyllochron_days,
             now,
             phyllochron_cd,
-            zone
+            zone,
+            next.map(|n| n.leaf),
+            next.map(|n| iso(n.at))
         ],
     )?;
     Ok(Diff {

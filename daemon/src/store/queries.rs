@@ -91,6 +91,8 @@ pub struct PlantTimeline {
     /// The zone whose temperature log times it ([`crate::climate_zone`]);
     /// `""` for the facility's.
     pub climate_zone: String,
+    /// The leaf that comes next and when it should appear ([`crate::forecast`]).
+    pub next_leaf: Option<(u32, String)>,
     /// Sessions: start, per-view counts, fused, leaves emerged, living.
     pub sessions: Vec<SessionRow>,
     /// Emergence events: leaf, estimated time, first seen.
@@ -405,12 +407,19 @@ impl Store {
 
     /// One plant's timeline as stored.
     pub fn plant_timeline(&self, plant: &str) -> anyhow::Result<Option<PlantTimeline>> {
-        let Some((id, phyllochron_days, phyllochron_cd, climate_zone)) = self
+        let Some((id, phyllochron_days, phyllochron_cd, climate_zone, next_leaf)) = self
             .conn
             .query_row(
-                "SELECT id, phyllochron_days, phyllochron_cd, COALESCE(climate_zone, '') FROM plants WHERE name = ?1",
+                "SELECT id, phyllochron_days, phyllochron_cd, COALESCE(climate_zone, ''), next_leaf, next_leaf_at
+                 FROM plants WHERE name = ?1",
                 [plant],
-                |r| Ok((r.get::<_, i64>(0)?, r.get(1)?, r.get(2)?, r.get(3)?)),
+                |r| {
+                    let next: Option<(u32, String)> = match (r.get(4)?, r.get(5)?) {
+                        (Some(l), Some(at)) => Some((l, at)),
+                        _ => None,
+                    };
+                    Ok((r.get::<_, i64>(0)?, r.get(1)?, r.get(2)?, r.get(3)?, next))
+                },
             )
             .optional()?
         else {
@@ -469,6 +478,7 @@ impl Store {
             phyllochron_days,
             phyllochron_cd,
             climate_zone,
+            next_leaf,
             sessions,
             events,
             sites: sites.into_iter().flatten().collect(),
