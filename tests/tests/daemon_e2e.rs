@@ -208,32 +208,8 @@ fn import_and_export_events(phyllo: &Path, settings: &str, obs: &str) -> Vec<BTr
     let (dir, cfg) = fresh_store(settings);
     let obs_path = dir.path().join("counts.csv");
     std::fs::write(&obs_path, obs).unwrap();
-    let events_csv = dir.path().join("events.csv");
-    for args in [
-        vec![
-            "import".as_ref(),
-            "-c".as_ref(),
-            cfg.as_os_str(),
-            obs_path.as_os_str(),
-        ],
-        vec![
-            "export".as_ref(),
-            "--what".as_ref(),
-            "events".as_ref(),
-            "-c".as_ref(),
-            cfg.as_os_str(),
-            "--out".as_ref(),
-            events_csv.as_os_str(),
-        ],
-    ] {
-        let st = Command::new(phyllo).args(&args).output().unwrap();
-        assert!(
-            st.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&st.stderr)
-        );
-    }
-    read_csv(&events_csv)
+    import(phyllo, &cfg, &obs_path);
+    export(phyllo, &cfg, "events")
 }
 
 fn read_csv(path: &Path) -> Vec<BTreeMap<String, String>> {
@@ -249,6 +225,43 @@ fn read_csv(path: &Path) -> Vec<BTreeMap<String, String>> {
                 .collect()
         })
         .collect()
+}
+
+/// Runs `phyllo ARGS`, failing the test with its stderr unless it succeeds.
+fn phyllo_ok(phyllo: &Path, args: &[&std::ffi::OsStr]) {
+    let st = Command::new(phyllo).args(args).output().unwrap();
+    assert!(
+        st.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+}
+
+/// Imports `csv` into the store of `cfg`.
+fn import(phyllo: &Path, cfg: &Path, csv: &Path) {
+    phyllo_ok(
+        phyllo,
+        &["import".as_ref(), "-c".as_ref(), cfg.as_os_str(), csv.as_os_str()],
+    );
+}
+
+/// The store's `KIND.csv` export (`plants`, `events`, ...), written beside
+/// `cfg` and read back.
+fn export(phyllo: &Path, cfg: &Path, kind: &str) -> Vec<BTreeMap<String, String>> {
+    let out = cfg.with_file_name(format!("{kind}.csv"));
+    phyllo_ok(
+        phyllo,
+        &[
+            "export".as_ref(),
+            "-c".as_ref(),
+            cfg.as_os_str(),
+            "--what".as_ref(),
+            kind.as_ref(),
+            "--out".as_ref(),
+            out.as_os_str(),
+        ],
+    );
+    read_csv(&out)
 }
 
 #[test]
@@ -678,14 +691,6 @@ fn phyllochron_in_degree_days_holds_across_climates() {
     let (store, cfg) = fresh_store(
         "[[timeline.zones]]\nname = 'cool'\nplants = '^cool-'\n[[timeline.zones]]\nname = 'warm'\nplants = '^warm-'\n",
     );
-    let run = |args: &[&std::ffi::OsStr]| {
-        let st = Command::new(&phyllo).args(args).output().unwrap();
-        assert!(
-            st.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&st.stderr)
-        );
-    };
     // The same stretch of development in both (about 8 to 27 days at 25 °C):
     // the warm plants grow twice as fast, so they are imaged younger and for
     // fewer days, and neither reaches the leaf deaths living counts cannot date.
@@ -711,31 +716,11 @@ fn phyllochron_in_degree_days_holds_across_climates() {
         }
         let log_path = store.path().join(format!("{zone}-climate.csv"));
         std::fs::write(&log_path, zoned).unwrap();
-        run(&[
-            "import".as_ref(),
-            "-c".as_ref(),
-            cfg.as_os_str(),
-            obs_path.as_os_str(),
-        ]);
-        run(&[
-            "import".as_ref(),
-            "-c".as_ref(),
-            cfg.as_os_str(),
-            log_path.as_os_str(),
-        ]);
+        import(&phyllo, &cfg, &obs_path);
+        import(&phyllo, &cfg, &log_path);
         truths.push((zone, climate, truth));
     }
-    let plants_csv = store.path().join("plants.csv");
-    run(&[
-        "export".as_ref(),
-        "-c".as_ref(),
-        cfg.as_os_str(),
-        "--what".as_ref(),
-        "plants".as_ref(),
-        "--out".as_ref(),
-        plants_csv.as_os_str(),
-    ]);
-    let exported = read_csv(&plants_csv);
+    let exported = export(&phyllo, &cfg, "plants");
     let mut means = Vec::new();
     for (zone, climate, truth) in &truths {
         let truth_values = true_phyllochrons(truth);
@@ -805,23 +790,8 @@ fn next_leaf_forecast_against_the_truth() {
         let (store, cfg) = fresh_store("");
         let obs = store.path().join("counts.csv");
         std::fs::write(&obs, true_counts_in_five_views(&seen)).unwrap();
-        let plants_csv = store.path().join("plants.csv");
-        for args in [
-            vec!["import".as_ref(), "-c".as_ref(), cfg.as_os_str(), obs.as_os_str()],
-            vec![
-                "export".as_ref(),
-                "-c".as_ref(),
-                cfg.as_os_str(),
-                "--what".as_ref(),
-                "plants".as_ref(),
-                "--out".as_ref(),
-                plants_csv.as_os_str(),
-            ],
-        ] {
-            let st = Command::new(&phyllo).args(&args).output().unwrap();
-            assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
-        }
-        for row in read_csv(&plants_csv) {
+        import(&phyllo, &cfg, &obs);
+        for row in export(&phyllo, &cfg, "plants") {
             let Ok(leaf) = row["next_leaf"].parse::<usize>() else {
                 continue;
             };

@@ -498,13 +498,7 @@ impl Store {
                 &now,
             )?;
         }
-        if let Some(journal) = journal {
-            tx.execute(
-                "INSERT OR REPLACE INTO imports (journal, source, rows, plants, imported_at)
-                 VALUES (?1, ?2, ?3, ?4, ?5)",
-                params![journal, source, rows.len(), plants.len(), now],
-            )?;
-        }
+        record_import(&tx, journal, source, rows.len(), plants.len(), &now)?;
         tx.commit()?;
         Ok((rows.len(), plants.len()))
     }
@@ -530,13 +524,7 @@ impl Store {
             )?;
         }
         let with = refresh_thermal(&tx, &self.params)?;
-        if let Some(journal) = journal {
-            tx.execute(
-                "INSERT OR REPLACE INTO imports (journal, source, rows, plants, imported_at)
-                 VALUES (?1, ?2, ?3, 0, ?4)",
-                params![journal, source, readings.len(), now],
-            )?;
-        }
+        record_import(&tx, journal, source, readings.len(), 0, &now)?;
         tx.commit()?;
         Ok(with)
     }
@@ -741,6 +729,26 @@ fn counted_with_hash(tx: &Transaction, sha: &str) -> anyhow::Result<Option<(i64,
         )?
         .query_row([sha], |r| Ok((r.get(0)?, r.get(1)?)))
         .optional()?)
+}
+
+/// Records an import by its journal entry (when it has one), so a restore
+/// knows which entries the database already holds.
+fn record_import(
+    tx: &Transaction,
+    journal: Option<&str>,
+    source: &str,
+    rows: usize,
+    plants: usize,
+    now: &str,
+) -> anyhow::Result<()> {
+    if let Some(journal) = journal {
+        tx.execute(
+            "INSERT OR REPLACE INTO imports (journal, source, rows, plants, imported_at)
+             VALUES (?1, ?2, ?3, ?4, ?5)",
+            params![journal, source, rows, plants, now],
+        )?;
+    }
+    Ok(())
 }
 
 fn upsert_plant(tx: &Transaction, name: &str, now: &str) -> anyhow::Result<i64> {

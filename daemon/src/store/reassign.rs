@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use anyhow::{bail, Context};
 use rusqlite::{params, TransactionBehavior};
 
-use super::{now_utc, push_feed, recompute, upsert_plant, Announce, FeedRow, Store};
+use super::{now_utc, push_feed, recompute, record_import, upsert_plant, Announce, FeedRow, Store};
 
 impl Store {
     /// Moves each image of `moves` (path relative to the drop directory,
@@ -96,13 +96,7 @@ impl Store {
                 &now,
             )?;
         }
-        if let Some(journal) = journal {
-            tx.execute(
-                "INSERT OR REPLACE INTO imports (journal, source, rows, plants, imported_at)
-                 VALUES (?1, ?2, ?3, ?4, ?5)",
-                params![journal, source, moves.len(), touched.len(), now],
-            )?;
-        }
+        record_import(&tx, journal, source, moves.len(), touched.len(), &now)?;
         tx.commit()?;
         Ok((moved.values().sum(), touched.len()))
     }
