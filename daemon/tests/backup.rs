@@ -258,14 +258,7 @@ fn a_restore_takes_the_later_imports_again_unless_told_not_to() {
         "P1,2026-11-01T10:00:00,SV_0,5\nP1,2026-11-03T10:00:00,SV_0,6\n",
     );
     assert!(site.phyllo(&["import", model.to_str().unwrap()]).status.success());
-    let out = site.phyllo(&["backup"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let snap = std::fs::read_dir(site.state.join("backups"))
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
+    let snap = only_snapshot(&site);
     let fix = csv("fix.csv", "P1,2026-11-03,human,8\n");
     let out = site.phyllo(&["import", fix.to_str().unwrap()]);
     let temps = site.tmp.path().join("temps.csv");
@@ -344,14 +337,7 @@ fn a_restore_names_a_later_import_it_cannot_take_and_takes_the_rest() {
     )
     .unwrap();
     assert!(site.phyllo(&["import", first.to_str().unwrap()]).status.success());
-    let out = site.phyllo(&["backup"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let snap = std::fs::read_dir(site.state.join("backups"))
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
+    let snap = only_snapshot(&site);
     let temps = site.tmp.path().join("house2.csv");
     std::fs::write(
         &temps,
@@ -386,4 +372,16 @@ fn a_restore_names_a_later_import_it_cannot_take_and_takes_the_rest() {
     );
     assert_eq!(site.q("SELECT COUNT(*) FROM observations"), 3);
     assert_eq!(site.q("SELECT COUNT(*) FROM climate"), 0);
+}
+
+/// Takes a snapshot with `phyllo backup` and returns it, the only one there.
+fn only_snapshot(site: &Site) -> std::path::PathBuf {
+    let out = site.phyllo(&["backup"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::read_dir(site.state.join("backups"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path()
 }

@@ -666,17 +666,7 @@ fn a_temperature_log_gives_degree_days_per_leaf() {
         "{days} d, {cd} °Cd"
     );
     assert!(ok(&["timeline", "-c", cfg, "F-1"]).contains(" degree-days per leaf"));
-    let plants = d.join("plants.csv");
-    ok(&[
-        "export",
-        "-c",
-        cfg,
-        "--what",
-        "plants",
-        "--out",
-        plants.to_str().unwrap(),
-    ]);
-    let text = std::fs::read_to_string(&plants).unwrap();
+    let text = plants_csv(cfg, d);
     assert!(
         text.lines()
             .next()
@@ -839,6 +829,21 @@ fn import_dir_takes_new_and_changed_files_once() {
     assert_eq!(q(d, "SELECT COUNT(*) FROM observations"), 0);
 }
 
+/// The store's `plants.csv`, exported into `d`.
+fn plants_csv(cfg: &str, d: &Path) -> String {
+    let plants = d.join("plants.csv");
+    ok(&[
+        "export",
+        "-c",
+        cfg,
+        "--what",
+        "plants",
+        "--out",
+        plants.to_str().unwrap(),
+    ]);
+    std::fs::read_to_string(&plants).unwrap()
+}
+
 /// One number from the test site's database.
 fn q(d: &Path, sql: &str) -> i64 {
     rusqlite::Connection::open(d.join("state/phyllo.sqlite"))
@@ -925,17 +930,7 @@ fn compartments_keep_their_own_temperature_logs() {
     );
     assert_eq!(cd("S-3"), None, "the empty house has no log");
     assert!(ok(&["timeline", "-c", cfg, "F-1"]).contains(" degree-days per leaf (zone hot-house)\n"));
-    let plants = d.join("plants.csv");
-    ok(&[
-        "export",
-        "-c",
-        cfg,
-        "--what",
-        "plants",
-        "--out",
-        plants.to_str().unwrap(),
-    ]);
-    let text = std::fs::read_to_string(&plants).unwrap();
+    let text = plants_csv(cfg, d);
     assert!(
         text.lines()
             .next()
