@@ -82,7 +82,18 @@ pub fn plot(t: &PlantTimeline, out: &Path, axis: TimeAxis) -> anyhow::Result<()>
         .iter()
         .map(|(_, at, _)| day(at))
         .collect::<anyhow::Result<Vec<f64>>>()?;
-    let xmax = xs.last().cloned().unwrap_or(0.0).max(1.0);
+    // The next leaf's forecast, in days only: the log holds no future temperatures.
+    let next = match (axis, &t.next_leaf) {
+        (TimeAxis::Days, Some((leaf, at))) => Some((*leaf, day(at)?)),
+        _ => None,
+    };
+    let ymax = ymax.max(next.map_or(0.0, |n| f64::from(n.0) + 0.5));
+    let xmax = xs
+        .last()
+        .cloned()
+        .unwrap_or(0.0)
+        .max(next.map_or(0.0, |n| n.1))
+        .max(1.0);
     // Half a day's margin either side, in the axis's own unit.
     let pad = match axis {
         TimeAxis::Days => 0.5,
@@ -219,6 +230,31 @@ pub fn plot(t: &PlantTimeline, out: &Path, axis: TimeAxis) -> anyhow::Result<()>
                 ("sans-serif", 13)
                     .into_font()
                     .color(&RED)
+                    .pos(Pos::new(HPos::Center, VPos::Bottom)),
+            )))
+            .map_err(err)?;
+    }
+    if let Some((leaf, x)) = next {
+        // Drawn apart from the dated leaves: thin, and its number asked.
+        let y = f64::from(leaf);
+        let pale = RGBColor(230, 120, 120);
+        chart
+            .draw_series(std::iter::once(PathElement::new(
+                vec![(x, y - 0.4), (x, y + 0.4)],
+                pale.stroke_width(1),
+            )))
+            .map_err(err)?
+            .label("next leaf expected")
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x + 10, y - 6), (x + 10, y + 6)], pale.stroke_width(1))
+            });
+        chart
+            .draw_series(std::iter::once(Text::new(
+                format!("{leaf}?"),
+                (x, y + 0.75),
+                ("sans-serif", 13)
+                    .into_font()
+                    .color(&pale)
                     .pos(Pos::new(HPos::Center, VPos::Bottom)),
             )))
             .map_err(err)?;
