@@ -99,6 +99,32 @@ impl ThermalClock {
     pub fn base(&self) -> f64 {
         self.base
     }
+
+    /// The last reading's time.
+    pub fn last_reading(&self) -> Option<NaiveDateTime> {
+        self.times.last().copied()
+    }
+
+    /// The time after `from` when `degree_days` more have accrued, within
+    /// the log (to a minute); `None` when the log ends first or a hole lies
+    /// between.
+    pub fn when(&self, from: NaiveDateTime, degree_days: f64) -> Option<NaiveDateTime> {
+        let end = self.last_reading()?;
+        if self.between(from, end)? < degree_days {
+            return None;
+        }
+        // Thermal time never falls, so halving the interval finds the moment.
+        let (mut lo, mut hi) = (from, end);
+        while hi - lo > chrono::Duration::minutes(1) {
+            let mid = lo + (hi - lo) / 2;
+            if self.between(from, mid)? < degree_days {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        Some(hi)
+    }
 }
 
 /// Degree-days per leaf: the least-squares slope of thermal time at

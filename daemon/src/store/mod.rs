@@ -1039,7 +1039,14 @@ fn recompute(
     let events: Vec<(u32, NaiveDateTime)> = tl.events.iter().map(|e| (e.leaf, e.at)).collect();
     let zone = params.zones.zone_of(plant);
     let phyllochron_cd = thermal_phyllochron(tx, &events, params.base_temp_c, zone)?;
-    let next = crate::forecast::next_leaf(&events, tl.phyllochron_days);
+    let next = next_leaf(
+        tx,
+        &events,
+        tl.phyllochron_days,
+        phyllochron_cd,
+        params.base_temp_c,
+        zone,
+    )?;
     tx.execute(
         "UPDATE plants SET sessions = ?2, last_taken_at = ?3, leaves_emerged = ?4, living = ?5,
              phyllochron_days = ?6, updated_at = ?7, phyllochron_cd = ?8, climate_zone = ?9,
@@ -1088,9 +1095,14 @@ fn refresh_thermal(tx: &Transaction, params: &TimelineParams) -> anyhow::Result<
         let zone = params.zones.zone_of(&name);
         let cd = thermal_phyllochron(tx, &events, params.base_temp_c, zone)?;
         with += usize::from(cd.is_some());
+        let days: Option<f64> =
+            tx.query_row("SELECT phyllochron_days FROM plants WHERE id = ?1", [id], |r| {
+                r.get(0)
+            })?;
+        let next = next_leaf(tx, &events, days, cd, params.base_temp_c, zone)?;
         tx.execute(
-            "UPDATE plants SET phyllochron_cd = ?2, climate_zone = ?3 WHERE id = ?1",
-            params![id, cd, zone],
+            "UPDATE plants SET phyllochron_cd = ?2, climate_zone = ?3, next_leaf = ?4, next_leaf_at = ?5 WHERE id = ?1",
+            params![id, cd, zone, next.map(|n| n.leaf), next.map(|n| iso(n.at))],
         )?;
     }
     Ok(with)
@@ -1130,6 +1142,37 @@ fn thermal_phyllochron(
         .collect::<anyhow::Result<Vec<_>>>()?;
     let clock = crate::thermal::ThermalClock::new(readings, base_temp_c);
     Ok(crate::thermal::phyllochron(&clock, events))
+}
+
+/// The next leaf ([`crate::forecast`]): by thermal time where `zone`'s log
+/// covers the last leaf, else one phyllochron in days after it.
+fn next_leaf(
+    tx: &Transaction,
+    events: &[(u32, NaiveDateTime)],
+    days_per_leaf: Option<f64>,
+    cd_per_leaf: Option<f64>,
+    base_temp_c: f64,
+    zone: &str,
+) -> anyhow::Result<Option<crate::forecast::NextLeaf>> {
+    if let (Some(cd), Some(&(_, last))) = (cd_per_leaf, events.last()) {
+        // From a little before the last leaf, so the log's last days are in too.
+        let from = last - chrono::Duration::days(crate::forecast::RECENT_DAYS + 1);
+        let readings = tx
+            .prepare_cached("SELECT taken_at, temp_c FROM climate WHERE zone = ?1 AND taken_at >= ?2")?
+            .query_map(params![zone, iso(from)], |r| {
+                Ok((r.get::<_, String>(0)?, r.get::<_, f64>(1)?))
+            })?
+            .map(|r| {
+                let (t, c) = r?;
+                Ok((parse_iso(&t)?, c))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let clock = crate::thermal::ThermalClock::new(readings, base_temp_c);
+        if let Some(next) = crate::forecast::next_leaf_thermal(events, Some(cd), &clock) {
+            return Ok(Some(next));
+        }
+    }
+    Ok(crate::forecast::next_leaf(events, days_per_leaf))
 }
 
 fn push_feed(tx: &Transaction, row: &FeedRow, now: &str) -> anyhow::Result<()> {
