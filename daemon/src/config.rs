@@ -78,6 +78,10 @@ pub struct WatchConfig {
     /// Seconds between full rescans of the drop directory (safety net for
     /// lost events, queue overflow, a recreated directory). 0 disables.
     pub rescan_secs: u64,
+    /// Hours without a new image after which `phyllo status --check` warns:
+    /// the imaging station, its network share or the drop directory may have
+    /// stopped. 0 turns the warning off (a site that images on some days only).
+    pub quiet_hours: f64,
 }
 
 impl Default for WatchConfig {
@@ -92,6 +96,7 @@ impl Default for WatchConfig {
             settle_ms: 300,
             poll_ms: 250,
             rescan_secs: 600,
+            quiet_hours: 48.0,
         }
     }
 }
@@ -385,6 +390,9 @@ impl Config {
         if self.timeline.session_gap_minutes <= 0.0 {
             bail!("timeline.session_gap_minutes must be positive");
         }
+        if !(self.watch.quiet_hours >= 0.0 && self.watch.quiet_hours.is_finite()) {
+            bail!("watch.quiet_hours must be 0 (no warning) or a positive number of hours");
+        }
         if !(self.feed.keep_days >= 0.0 && self.feed.keep_days.is_finite()) {
             bail!("feed.keep_days must be 0 (keep every entry) or a positive number of days");
         }
@@ -500,6 +508,7 @@ mod tests {
             "settle_ms",
             "poll_ms",
             "rescan_secs",
+            "quiet_hours",
             "[names]",
             "presets",
             "[[names.patterns]]",

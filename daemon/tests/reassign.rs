@@ -1,7 +1,8 @@
 //! Images filed under the wrong plant (a misread barcode), moved to the
 //! right one with an `image,plant` sheet beside the running service, and
 //! moved back with `phyllo import --undo`; real images counted by the real
-//! model, a real SQLite file.
+//! model, a real SQLite file. Then days without a new image, which
+//! `phyllo status --check` reports.
 
 mod common;
 
@@ -88,4 +89,16 @@ fn a_sheet_moves_misfiled_images_to_their_plant_and_undo_moves_them_back() {
     assert_eq!((sessions("P01"), sessions("P9X")), (3, 1));
     assert_eq!(site.q("SELECT COUNT(*) FROM reassignments"), 0);
     daemon.term();
+
+    // Three days later with no new image, a monitor hears of it.
+    rusqlite::Connection::open(&site.db)
+        .unwrap()
+        .execute(
+            "UPDATE images SET first_seen = strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-3 days')",
+            [],
+        )
+        .unwrap();
+    let check = site.phyllo(&["status", "--check"]);
+    let line = String::from_utf8_lossy(&check.stdout);
+    assert!(line.contains("no new image for 72 h"), "{line}");
 }

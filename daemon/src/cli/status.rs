@@ -46,6 +46,10 @@ pub struct Health {
     /// Temperature logs that end more than two days before their plants'
     /// newest session: (zone, hours behind).
     pub logs_behind: Vec<(String, f64)>,
+    /// Hours since the newest image arrived (`None`: none yet).
+    pub quiet_hours: Option<f64>,
+    /// `[watch] quiet_hours`: longer without an image warns; 0 never.
+    pub quiet_limit_hours: f64,
 }
 
 /// The findings, worst first; none means OK.
@@ -90,6 +94,15 @@ pub fn findings(h: &Health) -> Vec<(Level, String)> {
                 "{} internal errors since start (see the journal)",
                 h.internal_errors
             ),
+        ));
+    }
+    if let Some(q) = h
+        .quiet_hours
+        .filter(|q| h.quiet_limit_hours > 0.0 && *q > h.quiet_limit_hours)
+    {
+        out.push((
+            Level::Warning,
+            format!("no new image for {q:.0} h (the imaging station, its share or the drop directory?)"),
         ));
     }
     for (zone, hours) in &h.logs_behind {
@@ -163,6 +176,8 @@ pub fn health(config: &crate::config::Config, store: &Store) -> anyhow::Result<H
             .and_then(|v| v.parse().ok())
             .unwrap_or(0),
         logs_behind: store.temperature_logs_behind(STALE_NIGHTLY_HOURS as f64)?,
+        quiet_hours: store.hours_since_newest_image()?,
+        quiet_limit_hours: config.watch.quiet_hours,
     })
 }
 
@@ -420,6 +435,20 @@ mod tests {
             "{line}"
         );
         assert!(line.ends_with("no database snapshot"), "{line}");
+        let h = Health {
+            quiet_hours: Some(50.0),
+            quiet_limit_hours: 48.0,
+            ..healthy()
+        };
+        assert_eq!(
+            check_line(&findings(&h)).0,
+            "phyllo WARNING: no new image for 50 h (the imaging station, its share or the drop directory?)"
+        );
+        let off = Health {
+            quiet_limit_hours: 0.0,
+            ..h
+        };
+        assert_eq!(check_line(&findings(&off)).1, 0, "0 turns it off");
         let h = Health {
             logs_behind: vec![("house-2".into(), 60.0)],
             ..healthy()

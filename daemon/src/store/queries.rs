@@ -263,6 +263,16 @@ impl Store {
             .optional()?)
     }
 
+    /// Hours since the newest image file was first seen; `None` before any.
+    pub fn hours_since_newest_image(&self) -> anyhow::Result<Option<f64>> {
+        Ok(self.conn.query_row(
+            // Bookkeeping times are UTC with a `Z`, which julianday reads.
+            "SELECT ROUND((julianday('now') - julianday(MAX(first_seen))) * 24, 1) FROM images",
+            [],
+            |r| r.get(0),
+        )?)
+    }
+
     /// The most recent failures: (path, error).
     pub fn recent_failures(&self, n: usize) -> anyhow::Result<Vec<(String, String)>> {
         let mut stmt = self.conn.prepare(
