@@ -95,6 +95,28 @@ pub fn render(idx: &Index) -> String {
         (0, Some(png)) => format!("<a href=\"plots/{}\">{}</a>", attr(png), text(cell)),
         _ => text(cell).into_owned(),
     };
+    let due = leaves_due(&idx.plants);
+    if !due.rows.is_empty() {
+        h.push_str(&format!(
+            "<h2>Leaves due</h2>\n<p>Plants whose next leaf is due by {} (three days after the newest \
+             session, {}) or overdue, soonest first: one phyllochron after each plant's last leaf. \
+             A leaf overdue by days may mean a stressed plant or one past its flag leaf.</p>\n",
+            text(&due.until),
+            text(&due.today)
+        ));
+        table(
+            &mut h,
+            &[
+                "plant".into(),
+                "next leaf".into(),
+                "expected".into(),
+                "last session".into(),
+                "".into(),
+            ],
+            &due.rows,
+            plant_linked,
+        );
+    }
     let (in_doubt, sheet) = &idx.review;
     if !sheet.is_empty() {
         h.push_str(&format!(
@@ -160,6 +182,69 @@ fn table(h: &mut String, head: &[String], rows: &[Vec<String>], cell: impl Fn(us
         h.push_str("</tr>\n");
     }
     h.push_str("</table>\n");
+}
+
+/// The "Leaves due" section's rows and the days it spans.
+struct Due {
+    /// The newest session of any plant (date), standing for today.
+    today: String,
+    /// Three days after it.
+    until: String,
+    /// plant, next leaf, expected, last session, how late.
+    rows: Vec<Vec<String>>,
+}
+
+/// From the `plants` table: plants whose next leaf is expected within three
+/// days of the newest session, or before their own last session (overdue).
+fn leaves_due((head, rows): &(Vec<String>, Vec<Vec<String>>)) -> Due {
+    let col = |name: &str| head.iter().position(|h| h == name);
+    let none = Due {
+        today: String::new(),
+        until: String::new(),
+        rows: Vec::new(),
+    };
+    let (Some(leaf), Some(expected), Some(last)) =
+        (col("next_leaf"), col("next_leaf_expected"), col("last_session"))
+    else {
+        return none;
+    };
+    let parse = |s: &str| crate::store::parse_iso(s).ok();
+    let Some(today) = rows.iter().filter_map(|r| parse(&r[last])).max() else {
+        return none;
+    };
+    let until = today + chrono::Duration::days(3);
+    let mut due: Vec<(chrono::NaiveDateTime, Vec<String>)> = rows
+        .iter()
+        .filter_map(|r| {
+            let at = parse(&r[expected])?;
+            let seen = parse(&r[last])?;
+            if at > until {
+                return None;
+            }
+            let late = (seen - at).num_hours() as f64 / 24.0;
+            let note = if late > 0.0 {
+                format!("overdue by {late:.1} days at its last session")
+            } else {
+                String::new()
+            };
+            Some((
+                at,
+                vec![
+                    r[0].clone(),
+                    r[leaf].clone(),
+                    r[expected].get(..16).unwrap_or(&r[expected]).to_string(),
+                    r[last].get(..16).unwrap_or(&r[last]).to_string(),
+                    note,
+                ],
+            ))
+        })
+        .collect();
+    due.sort_by_key(|d| d.0);
+    Due {
+        today: today.format("%Y-%m-%d").to_string(),
+        until: until.format("%Y-%m-%d").to_string(),
+        rows: due.into_iter().map(|d| d.1).collect(),
+    }
 }
 
 /// Writes the page to `out`, renamed into place whole.
@@ -236,6 +321,7 @@ mod tests {
             page.contains("<td>drop/bad&lt;1&gt;.png</td><td>truncated PNG</td>"),
             "{page}"
         );
+        assert!(!page.contains("Leaves due"), "no forecasts, no section");
         let dir = tempfile::tempdir().unwrap();
         write(&dir.path().join("index.html"), &idx).unwrap();
         assert_eq!(
@@ -247,5 +333,28 @@ mod tests {
             1,
             "no temporary file left"
         );
+    }
+
+    #[test]
+    fn leaves_due_soonest_first_with_the_overdue() {
+        let head: Vec<String> = ["plant", "last_session", "next_leaf", "next_leaf_expected"]
+            .map(String::from)
+            .to_vec();
+        let row = |p: &str, last: &str, leaf: &str, at: &str| [p, last, leaf, at].map(String::from).to_vec();
+        let rows = vec![
+            row("late", "2026-11-10T08:00:00.000", "9", "2026-11-08T08:00:00.000"),
+            row("soon", "2026-11-10T08:00:00.000", "7", "2026-11-12T20:00:00.000"),
+            row("later", "2026-11-10T08:00:00.000", "5", "2026-11-20T08:00:00.000"),
+            row("none", "2026-11-10T08:00:00.000", "", ""),
+        ];
+        let due = leaves_due(&(head, rows));
+        assert_eq!(
+            (due.today.as_str(), due.until.as_str()),
+            ("2026-11-10", "2026-11-13")
+        );
+        let plants: Vec<&str> = due.rows.iter().map(|r| r[0].as_str()).collect();
+        assert_eq!(plants, ["late", "soon"]);
+        assert_eq!(due.rows[0][4], "overdue by 2.0 days at its last session");
+        assert_eq!(due.rows[1][2], "2026-11-12T20:00");
     }
 }
