@@ -176,7 +176,9 @@ fn timeline_settings(tl: &crate::config::TimelineConfig, zones: &crate::climate_
     format!(
         // `leaf_sites`: where each new leaf emerged, added in schema 6; bumping
         // it refits every plant once so older events get their sites.
-        "fusion={};session_gap_minutes={};living_window={};death_penalty={};base_temp_c={};leaf_sites=2{}",
+        // `next_leaf`: the forecast of schema 7, filled in by that refit for
+        // plants that get no new image.
+        "fusion={};session_gap_minutes={};living_window={};death_penalty={};base_temp_c={};leaf_sites=2;next_leaf=1{}",
         tl.fusion,
         tl.session_gap_minutes,
         tl.living_window,

@@ -446,7 +446,8 @@ fn opening_with_other_timeline_settings_refits_every_plant() {
         .query_row("SELECT value FROM meta WHERE key = 'timeline'", [], |r| r.get(0))
         .unwrap();
     assert!(
-        kept.contains("fusion=max-side;") && kept.ends_with("death_penalty=0;base_temp_c=10;leaf_sites=2"),
+        kept.contains("fusion=max-side;")
+            && kept.ends_with("death_penalty=0;base_temp_c=10;leaf_sites=2;next_leaf=1"),
         "{kept}"
     );
 }
