@@ -1080,12 +1080,15 @@ fn recompute(
 /// Works out every plant's thermal phyllochron again (after the temperature
 /// log changed); returns how many plants have one.
 fn refresh_thermal(tx: &Transaction, params: &TimelineParams) -> anyhow::Result<usize> {
-    let plants: Vec<(i64, String)> = tx
-        .prepare("SELECT id, name FROM plants")?
-        .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))?
+    let plants: Vec<(i64, String, Option<f64>)> = tx
+        .prepare("SELECT id, name, phyllochron_days FROM plants")?
+        .query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))?
         .collect::<Result<_, _>>()?;
+    // Each zone's whole log read once, not once per plant: a log imported
+    // hourly would otherwise be parsed again for every plant every hour.
+    let mut clocks: BTreeMap<String, Option<crate::thermal::ThermalClock>> = BTreeMap::new();
     let mut with = 0;
-    for (id, name) in plants {
+    for (id, name, days) in plants {
         let events: Vec<(u32, NaiveDateTime)> = tx
             .prepare_cached("SELECT leaf, emerged_at FROM events WHERE plant_id = ?1 ORDER BY leaf")?
             .query_map([id], |r| Ok((r.get(0)?, r.get::<_, String>(1)?)))?
@@ -1095,19 +1098,38 @@ fn refresh_thermal(tx: &Transaction, params: &TimelineParams) -> anyhow::Result<
             })
             .collect::<anyhow::Result<_>>()?;
         let zone = params.zones.zone_of(&name);
-        let cd = thermal_phyllochron(tx, &events, params.base_temp_c, zone)?;
+        if !clocks.contains_key(zone) {
+            clocks.insert(zone.to_string(), zone_clock(tx, zone, params.base_temp_c)?);
+        }
+        let clock = clocks[zone].as_ref();
+        let cd = clock.and_then(|c| crate::thermal::phyllochron(c, &events));
         with += usize::from(cd.is_some());
-        let days: Option<f64> =
-            tx.query_row("SELECT phyllochron_days FROM plants WHERE id = ?1", [id], |r| {
-                r.get(0)
-            })?;
-        let next = next_leaf(tx, &events, days, cd, params.base_temp_c, zone)?;
+        let next = clock
+            .and_then(|c| crate::forecast::next_leaf_thermal(&events, cd, c))
+            .or_else(|| crate::forecast::next_leaf(&events, days));
         tx.execute(
             "UPDATE plants SET phyllochron_cd = ?2, climate_zone = ?3, next_leaf = ?4, next_leaf_at = ?5 WHERE id = ?1",
             params![id, cd, zone, next.map(|n| n.leaf), next.map(|n| iso(n.at))],
         )?;
     }
     Ok(with)
+}
+
+/// A thermal clock over `zone`'s whole temperature log; `None` without one.
+pub(crate) fn zone_clock(
+    conn: &Connection,
+    zone: &str,
+    base_temp_c: f64,
+) -> anyhow::Result<Option<crate::thermal::ThermalClock>> {
+    let readings = conn
+        .prepare_cached("SELECT taken_at, temp_c FROM climate WHERE zone = ?1 ORDER BY taken_at")?
+        .query_map([zone], |r| Ok((r.get::<_, String>(0)?, r.get::<_, f64>(1)?)))?
+        .map(|r| {
+            let (t, c) = r?;
+            Ok((parse_iso(&t)?, c))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    Ok((!readings.is_empty()).then(|| crate::thermal::ThermalClock::new(readings, base_temp_c)))
 }
 
 /// Degree-days per leaf over `events` (leaf, emergence), from the

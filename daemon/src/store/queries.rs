@@ -387,16 +387,7 @@ impl Store {
         base_temp_c: f64,
         zone: &str,
     ) -> anyhow::Result<Option<crate::thermal::ThermalClock>> {
-        let readings = self
-            .conn
-            .prepare("SELECT taken_at, temp_c FROM climate WHERE zone = ?1 ORDER BY taken_at")?
-            .query_map([zone], |r| Ok((r.get::<_, String>(0)?, r.get::<_, f64>(1)?)))?
-            .map(|r| {
-                let (t, c) = r?;
-                Ok((super::parse_iso(&t)?, c))
-            })
-            .collect::<anyhow::Result<Vec<_>>>()?;
-        Ok((!readings.is_empty()).then(|| crate::thermal::ThermalClock::new(readings, base_temp_c)))
+        super::zone_clock(&self.conn, zone, base_temp_c)
     }
 
     /// All plant ids, sorted.
