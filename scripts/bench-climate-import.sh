@@ -46,5 +46,15 @@ for ((r = 1; r <= ${ROUNDS:-3}; r++)); do
     "$bin" import -c p.toml log.csv >/dev/null
     t1=$(date +%s%N)
     echo "| $bin | $r | ${PLANTS:-500} | $(( (t1 - t0) / 1000000 )) ms |"
+    cp db.sqlite "after-$(basename "$(dirname "$bin")")-$RANDOM.sqlite"
   done
 done
+# Both builds must leave every plant with the same numbers.
+python3 - after-*.sqlite <<'PY'
+import sqlite3, sys
+q = "SELECT name, ROUND(phyllochron_cd, 9), next_leaf_at FROM plants ORDER BY name"
+results = {f: sqlite3.connect(f).execute(q).fetchall() for f in sys.argv[1:]}
+same = len({tuple(r) for r in results.values()}) == 1
+print(f"every plant's degree-days per leaf and next-leaf forecast the same after all {len(results)} runs: {same}")
+sys.exit(0 if same else 1)
+PY
