@@ -41,9 +41,10 @@ impl Store {
                 .query_map([path], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))?
                 .collect::<Result<_, _>>()?;
             if versions.is_empty() {
+                // Row i of the sheet is its line i + 2, after the header.
                 bail!(
-                    "row {}: no image {path:?} in the database (give the path as images.csv has it)",
-                    i + 1
+                    "line {}: no image {path:?} in the database (give the path as images.csv has it)",
+                    i + 2
                 );
             }
             let to = upsert_plant(&tx, plant, &now)?;
