@@ -82,6 +82,11 @@ pub struct WatchConfig {
     /// the imaging station, its network share or the drop directory may have
     /// stopped. 0 turns the warning off (a site that images on some days only).
     pub quiet_hours: f64,
+    /// Leave top-view images alone (not read, not counted). The model was
+    /// trained on side views and under-counts a top view by about five
+    /// leaves, and only the `max` fusion rule uses them, so a station that
+    /// takes one top view per five side views saves a sixth of the counting.
+    pub skip_top_views: bool,
 }
 
 impl Default for WatchConfig {
@@ -97,6 +102,7 @@ impl Default for WatchConfig {
             poll_ms: 250,
             rescan_secs: 600,
             quiet_hours: 48.0,
+            skip_top_views: false,
         }
     }
 }
@@ -509,6 +515,7 @@ mod tests {
             "poll_ms",
             "rescan_secs",
             "quiet_hours",
+            "skip_top_views",
             "[names]",
             "presets",
             "[[names.patterns]]",

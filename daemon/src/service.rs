@@ -64,6 +64,11 @@ pub async fn run(
     // Sources feed candidates into one channel; the intake is its only reader.
     let (cand_tx, mut cand_rx) = mpsc::channel::<Candidate>(4096);
     let filter = Filter::new(&config.drop_dir, &config.watch);
+    let filter = if config.watch.skip_top_views {
+        filter.skipping_top_views(NamePatterns::from_config(&config.names)?)
+    } else {
+        filter
+    };
     let mut watcher = start_watch(&filter, &cand_tx);
     let intake_store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
     let mut intake = Intake::new(

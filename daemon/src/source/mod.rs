@@ -49,6 +49,8 @@ pub struct Filter {
     root: PathBuf,
     extensions: Vec<String>,
     ignore_hidden: bool,
+    /// With `[watch] skip_top_views`: the names that tell a top view.
+    skip_top: Option<crate::names::NamePatterns>,
 }
 
 impl Filter {
@@ -62,7 +64,16 @@ impl Filter {
                 .map(|e| e.trim_start_matches('.').to_ascii_lowercase())
                 .collect(),
             ignore_hidden: cfg.ignore_hidden,
+            skip_top: None,
         }
+    }
+
+    /// The same filter, also leaving out every file `names` reads as a top
+    /// view (by its name alone, so a skipped file is never read, not even by
+    /// rescans).
+    pub fn skipping_top_views(mut self, names: crate::names::NamePatterns) -> Filter {
+        self.skip_top = Some(names);
+        self
     }
 
     /// The drop directory.
@@ -97,7 +108,16 @@ impl Filter {
             .extension()
             .map(|e| e.to_string_lossy().to_ascii_lowercase())
             .unwrap_or_default();
-        self.extensions.contains(&ext)
+        if !self.extensions.contains(&ext) {
+            return false;
+        }
+        // A name that does not parse is left to the worker, which records why.
+        let top = self.skip_top.as_ref().is_some_and(|names| {
+            self.rel(path)
+                .and_then(|rel| names.parse(Path::new(&rel)).ok())
+                .is_some_and(|n| n.view.is_top())
+        });
+        !top
     }
 
     fn hidden(&self, path: &Path) -> bool {
@@ -110,6 +130,20 @@ impl Filter {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn top_views_are_left_out_when_asked() {
+        let names = crate::names::NamePatterns::from_config(&crate::config::NamesConfig::default()).unwrap();
+        let cfg = WatchConfig::default();
+        let side = Path::new("/drop/P1_2018-04-20_10-00-00_Vis_SV_36.png");
+        let top = Path::new("/drop/P1_2018-04-20_10-02-00_Vis_TV_90.png");
+        let odd = Path::new("/drop/not-a-phenotyping-name.png");
+        let all = Filter::new(Path::new("/drop"), &cfg);
+        assert!(all.wants_file(side) && all.wants_file(top) && all.wants_file(odd));
+        let sides = all.skipping_top_views(names);
+        assert!(sides.wants_file(side) && !sides.wants_file(top));
+        assert!(sides.wants_file(odd), "the worker names what it cannot parse");
+    }
 
     #[test]
     fn filter_images_and_hidden() {
