@@ -929,6 +929,11 @@ fn compartments_keep_their_own_temperature_logs() {
         "the facility's 13 °Cd a day"
     );
     assert_eq!(cd("S-3"), None, "the empty house has no log");
+    let t: serde_json::Value = serde_json::from_str(&ok(&["timeline", "-c", cfg, "F-1", "--json"])).unwrap();
+    assert!(
+        t["next_leaf"]["leaf"].as_u64().is_some() && t["next_leaf"]["expected"].as_str().is_some(),
+        "{t}"
+    );
     assert!(ok(&["timeline", "-c", cfg, "F-1"]).contains(" degree-days per leaf (zone hot-house)\n"));
     let text = plants_csv(cfg, d);
     assert!(

@@ -180,7 +180,7 @@ pub fn render(t: &PlantTimeline) -> String {
         (Some(p), None) => s += &format!("phyllochron: {p:.2} days per leaf\n"),
         (None, _) => s += "phyllochron: n/a (fewer than two emergence events)\n",
     }
-    if let Some((leaf, at)) = &t.next_leaf {
+    if let Some(crate::store::NextLeafRow { leaf, expected: at }) = &t.next_leaf {
         s += &format!(
             "next leaf:   {leaf} expected about {} (one phyllochron after the last){}\n",
             at.get(..16).unwrap_or(at),

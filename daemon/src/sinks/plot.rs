@@ -84,7 +84,7 @@ pub fn plot(t: &PlantTimeline, out: &Path, axis: TimeAxis) -> anyhow::Result<()>
         .collect::<anyhow::Result<Vec<f64>>>()?;
     // The next leaf's forecast, in days only: the log holds no future temperatures.
     let next = match (axis, &t.next_leaf) {
-        (TimeAxis::Days, Some((leaf, at))) => Some((*leaf, day(at)?)),
+        (TimeAxis::Days, Some(n)) => Some((n.leaf, day(&n.expected)?)),
         _ => None,
     };
     let ymax = ymax.max(next.map_or(0.0, |n| f64::from(n.0) + 0.5));

@@ -36,7 +36,9 @@ use rusqlite::{params, Connection, OpenFlags, OptionalExtension, Transaction, Tr
 use crate::names::{ParsedName, View};
 use crate::timeline::{self, Obs, TimelineParams};
 
-pub use queries::{ClimateSummary, FeedRow, ImageCounts, LastImage, LeafSiteRow, PlantTimeline, SessionRow};
+pub use queries::{
+    ClimateSummary, FeedRow, ImageCounts, LastImage, LeafSiteRow, NextLeafRow, PlantTimeline, SessionRow,
+};
 
 /// Formats a facility time the way the database and exports store it.
 pub fn iso(t: NaiveDateTime) -> String {

@@ -92,7 +92,7 @@ pub struct PlantTimeline {
     /// `""` for the facility's.
     pub climate_zone: String,
     /// The leaf that comes next and when it should appear ([`crate::forecast`]).
-    pub next_leaf: Option<(u32, String)>,
+    pub next_leaf: Option<NextLeafRow>,
     /// Sessions: start, per-view counts, fused, leaves emerged, living.
     pub sessions: Vec<SessionRow>,
     /// Emergence events: leaf, estimated time, first seen.
@@ -116,6 +116,15 @@ pub struct LeafSiteRow {
     pub bbox: [u32; 4],
     /// Its area, image pixels.
     pub area: i64,
+}
+
+/// A plant's next leaf as stored ([`crate::forecast`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NextLeafRow {
+    /// Its number.
+    pub leaf: u32,
+    /// When it should appear (facility local time, ISO 8601).
+    pub expected: String,
 }
 
 /// What one zone's temperature log holds ([`Store::climate_summary`]).
@@ -415,8 +424,8 @@ impl Store {
                  FROM plants WHERE name = ?1",
                 [plant],
                 |r| {
-                    let next: Option<(u32, String)> = match (r.get(4)?, r.get(5)?) {
-                        (Some(l), Some(at)) => Some((l, at)),
+                    let next = match (r.get(4)?, r.get(5)?) {
+                        (Some(leaf), Some(expected)) => Some(NextLeafRow { leaf, expected }),
                         _ => None,
                     };
                     Ok((r.get::<_, i64>(0)?, r.get(1)?, r.get(2)?, r.get(3)?, next))
