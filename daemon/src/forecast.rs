@@ -36,14 +36,22 @@ pub struct NextLeaf {
 /// plant's phyllochron (days per leaf); `None` with fewer than three leaves
 /// dated or no forward rate.
 pub fn next_leaf(events: &[(u32, NaiveDateTime)], days_per_leaf: Option<f64>) -> Option<NextLeaf> {
+    leaf_due(events, days_per_leaf, events.last()?.0 + 1)
+}
+
+/// When leaf `leaf`, after the last of `events`, should appear: a
+/// phyllochron in days for each leaf to go; `None` as for [`next_leaf`] or
+/// when that leaf has already emerged.
+pub fn leaf_due(events: &[(u32, NaiveDateTime)], days_per_leaf: Option<f64>, leaf: u32) -> Option<NextLeaf> {
     if events.len() < 3 {
         return None;
     }
     let rate = days_per_leaf.filter(|r| *r > 0.0 && r.is_finite())?;
-    let &(leaf, at) = events.last()?;
+    let &(last_leaf, at) = events.last()?;
+    let to_go = f64::from(leaf.checked_sub(last_leaf).filter(|n| *n > 0)?);
     Some(NextLeaf {
-        leaf: leaf + 1,
-        at: at + Duration::milliseconds((rate * 86_400_000.0).round() as i64),
+        leaf,
+        at: at + Duration::milliseconds((to_go * rate * 86_400_000.0).round() as i64),
     })
 }
 
@@ -55,13 +63,24 @@ pub fn next_leaf_thermal(
     cd_per_leaf: Option<f64>,
     clock: &ThermalClock,
 ) -> Option<NextLeaf> {
+    leaf_due_thermal(events, cd_per_leaf, clock, events.last()?.0 + 1)
+}
+
+/// [`leaf_due`] by thermal time, as [`next_leaf_thermal`] times the next leaf.
+pub fn leaf_due_thermal(
+    events: &[(u32, NaiveDateTime)],
+    cd_per_leaf: Option<f64>,
+    clock: &ThermalClock,
+    leaf: u32,
+) -> Option<NextLeaf> {
     if events.len() < 3 {
         return None;
     }
-    let need = cd_per_leaf.filter(|r| *r > 0.0 && r.is_finite())?;
-    let &(leaf, last) = events.last()?;
+    let per_leaf = cd_per_leaf.filter(|r| *r > 0.0 && r.is_finite())?;
+    let &(last_leaf, last) = events.last()?;
+    let need = per_leaf * f64::from(leaf.checked_sub(last_leaf).filter(|n| *n > 0)?);
     if let Some(at) = clock.when(last, need) {
-        return Some(NextLeaf { leaf: leaf + 1, at });
+        return Some(NextLeaf { leaf, at });
     }
     let end = clock.last_reading()?;
     let so_far = clock.between(last, end)?;
@@ -71,7 +90,7 @@ pub fn next_leaf_thermal(
     }
     let days = (need - so_far) / per_day;
     Some(NextLeaf {
-        leaf: leaf + 1,
+        leaf,
         at: end + Duration::milliseconds((days * 86_400_000.0).round() as i64),
     })
 }
@@ -105,6 +124,9 @@ mod tests {
         );
         assert_eq!(next_leaf(&events, Some(0.0)), None, "no forward rate");
         assert_eq!(next_leaf(&events, None), None);
+        // Three leaves on: three phyllochrons after the last; one already out: none.
+        assert_eq!(leaf_due(&events, Some(2.5), 13).map(|n| n.at), Some(day(23.5)));
+        assert_eq!(leaf_due(&events, Some(2.5), 9), None);
     }
 
     #[test]

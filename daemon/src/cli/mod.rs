@@ -6,6 +6,7 @@ pub mod count;
 pub mod counter_args;
 pub mod eval;
 pub mod export;
+pub mod forecast;
 pub mod groups;
 pub mod import;
 pub mod import_dir;
@@ -49,6 +50,8 @@ pub enum Command {
     Export(export::Args),
     /// Print (and plot) one plant's timeline.
     Timeline(timeline::Args),
+    /// When each plant reaches a leaf stage (its next leaf, or leaf N).
+    Forecast(forecast::Args),
     /// Summarise the plants per group (genotype, treatment, ... read from plant ids).
     Groups(groups::Args),
     /// List the plant sessions most in doubt, to count by hand and import back.
@@ -92,6 +95,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Tail(a) => ok(tail::run(a)),
         Command::Export(a) => ok(export::run(a)),
         Command::Timeline(a) => ok(timeline::run(a)),
+        Command::Forecast(a) => ok(forecast::run(a)),
         Command::Groups(a) => ok(groups::run(a)),
         Command::Review(a) => ok(review::run(a)),
         Command::Status(a) => status::run(a),
