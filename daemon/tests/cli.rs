@@ -655,18 +655,6 @@ fn a_temperature_log_gives_degree_days_per_leaf() {
     assert!(ok(&["status", "-c", cfg]).contains(
         "climate:   1152 temperatures from 2026-10-30T00:00 to 2026-11-22T23:30; longest gap 0.5 h\n"
     ));
-    // `phyllo forecast`: a leaf out already, one due by the hot house's log, one by days.
-    let how = |args: &[&str]| -> String {
-        let mut all = vec!["forecast", "-c", cfg, "--json"];
-        all.extend_from_slice(args);
-        let v: serde_json::Value = serde_json::from_str(&ok(&all)).unwrap();
-        v[0]["how"].as_str().unwrap_or("none").to_string()
-    };
-    assert_eq!(how(&["--plant", "F-1", "--leaf", "5"]), "emerged");
-    assert_eq!(how(&["--plant", "F-1", "--leaf", "30"]), "degree-days");
-    assert_eq!(how(&["--plant", "S-3"]), "days", "the empty house has no log");
-    let out = phyllo(&["forecast", "-c", cfg, "--plant", "Q-9"]);
-    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("no plant \"Q-9\""));
     let t: serde_json::Value = serde_json::from_str(&ok(&["timeline", "-c", cfg, "F-1", "--json"])).unwrap();
     let (days, cd) = (
         t["phyllochron_days"].as_f64().unwrap(),
@@ -941,6 +929,18 @@ fn compartments_keep_their_own_temperature_logs() {
         "the facility's 13 °Cd a day"
     );
     assert_eq!(cd("S-3"), None, "the empty house has no log");
+    // `phyllo forecast`: a leaf out already, one due by the hot house's log, one by days.
+    let how = |args: &[&str]| -> String {
+        let mut all = vec!["forecast", "-c", cfg, "--json"];
+        all.extend_from_slice(args);
+        let v: serde_json::Value = serde_json::from_str(&ok(&all)).unwrap();
+        v[0]["how"].as_str().unwrap_or("none").to_string()
+    };
+    assert_eq!(how(&["--plant", "F-1", "--leaf", "5"]), "emerged");
+    assert_eq!(how(&["--plant", "F-1", "--leaf", "30"]), "degree-days");
+    assert_eq!(how(&["--plant", "S-3"]), "days", "the empty house has no log");
+    let out = phyllo(&["forecast", "-c", cfg, "--plant", "Q-9"]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("no plant \"Q-9\""));
     let t: serde_json::Value = serde_json::from_str(&ok(&["timeline", "-c", cfg, "F-1", "--json"])).unwrap();
     assert!(
         t["next_leaf"]["leaf"].as_u64().is_some() && t["next_leaf"]["expected"].as_str().is_some(),

@@ -21,7 +21,9 @@ pub struct Args {
     /// CSV with a header row and columns plant,timestamp,view,leaf_count
     /// (other columns are ignored), or a greenhouse temperature log with
     /// columns timestamp,temp_c and, where compartments keep logs of their
-    /// own, zone (a `[[timeline.zones]]` name; empty: the facility's log). Timestamps: ISO 8601 (`2018-04-20T10:32:16`,
+    /// own, zone (a `[[timeline.zones]]` name; empty: the facility's log), or
+    /// a sheet of images filed under the wrong plant with columns image,plant
+    /// (each image, as images.csv names it, moves to that plant). Timestamps: ISO 8601 (`2018-04-20T10:32:16`,
     /// a space instead of `T`, or a date alone for noon), facility local time.
     #[arg(value_name = "OBS.csv", required_unless_present_any = ["undo", "dir"])]
     file: Option<PathBuf>,
