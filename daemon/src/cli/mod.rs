@@ -40,7 +40,7 @@ pub struct Cli {
 pub enum Command {
     /// Run the daemon: watch the drop directory, count leaves, keep timelines.
     Serve(serve::Args),
-    /// Ingest leaf counts made elsewhere (CSV: plant,timestamp,view,leaf_count).
+    /// Ingest CSVs made elsewhere: leaf counts, temperature logs, images to move to their plant (a file or a folder).
     Import(import::Args),
     /// Count the stored images again with the configured model and settings (after an upgrade).
     Recount(recount::Args),
