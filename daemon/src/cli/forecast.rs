@@ -110,21 +110,21 @@ pub fn due(t: &PlantTimeline, leaf: Option<u32>, clocks: &ZoneClocks) -> anyhow:
             how: "emerged",
         }));
     }
-    let thermal = clocks
-        .for_plant(&t.plant)
-        .and_then(|c| crate::forecast::leaf_due_thermal(&events, t.phyllochron_cd, c, leaf));
-    let (found, how) = match thermal {
-        Some(n) => (Some(n), "degree-days"),
-        None => (
-            crate::forecast::leaf_due(&events, t.phyllochron_days, leaf),
-            "days",
-        ),
-    };
-    Ok(found.map(|n| Due {
+    let found = crate::forecast::leaf_due_by_either(
+        &events,
+        t.phyllochron_days,
+        t.phyllochron_cd,
+        clocks.for_plant(&t.plant),
+        leaf,
+    );
+    Ok(found.map(|(n, basis)| Due {
         plant: t.plant.clone(),
         leaves: last,
         leaf,
         at: crate::store::iso(n.at),
-        how,
+        how: match basis {
+            crate::forecast::Basis::DegreeDays => "degree-days",
+            crate::forecast::Basis::Days => "days",
+        },
     }))
 }

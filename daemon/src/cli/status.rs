@@ -236,6 +236,7 @@ fn show(args: Args) -> anyhow::Result<()> {
     let free = crate::disk::free_bytes(&state_dir).ok();
     let in_doubt = crate::review::rank(&store.plant_timelines()?, None).len();
     let climate = store.climate_summary()?;
+    let behind = store.temperature_logs_behind(STALE_NIGHTLY_HOURS as f64)?;
     let get = |k: &str| svc.get(k).cloned().unwrap_or_else(|| "-".into());
     let state = service_state(&svc);
     if args.json {
@@ -246,10 +247,7 @@ fn show(args: Args) -> anyhow::Result<()> {
             "timeline": timeline,
             "sessions_in_doubt": in_doubt,
             "climate": climate,
-            "climate_behind_hours": store
-                .temperature_logs_behind(STALE_NIGHTLY_HOURS as f64)?
-                .into_iter()
-                .collect::<std::collections::BTreeMap<String, f64>>(),
+            "climate_behind_hours": behind.iter().cloned().collect::<std::collections::BTreeMap<String, f64>>(),
             "last_image": last,
             "recent_failures": failures,
             "counts_with_other_settings": other_settings,
@@ -309,8 +307,8 @@ fn show(args: Args) -> anyhow::Result<()> {
             }
         );
     }
-    for (zone, hours) in store.temperature_logs_behind(STALE_NIGHTLY_HOURS as f64)? {
-        println!("climate:   {}", log_behind(&zone, hours));
+    for (zone, hours) in &behind {
+        println!("climate:   {}", log_behind(zone, *hours));
     }
     for zone in &config.timeline.zones {
         if !climate.iter().any(|c| c.zone == zone.name) {

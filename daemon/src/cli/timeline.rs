@@ -190,8 +190,9 @@ pub fn render(t: &PlantTimeline) -> String {
     s
 }
 
-/// ", not seen by DATE (N days after it was due)" when the last session is
-/// past the expected time: a late leaf, a stressed plant, or the flag leaf.
+/// "; not counted by the last session, N days after it was due" when the
+/// last session is past the expected time: a late leaf, a stressed plant, or
+/// the flag leaf.
 fn overdue(expected: &str, last_session: Option<&str>) -> String {
     let (Ok(at), Some(Ok(last))) = (
         crate::store::parse_iso(expected),
@@ -199,10 +200,7 @@ fn overdue(expected: &str, last_session: Option<&str>) -> String {
     ) else {
         return String::new();
     };
-    let late = (last - at).num_hours() as f64 / 24.0;
-    if late > 0.0 {
+    crate::forecast::days_overdue(at, last).map_or(String::new(), |late| {
         format!("; not counted by the last session, {late:.1} days after it was due")
-    } else {
-        String::new()
-    }
+    })
 }

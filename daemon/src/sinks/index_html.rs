@@ -221,12 +221,9 @@ fn leaves_due((head, rows): &(Vec<String>, Vec<Vec<String>>)) -> Due {
             if at > until {
                 return None;
             }
-            let late = (seen - at).num_hours() as f64 / 24.0;
-            let note = if late > 0.0 {
+            let note = crate::forecast::days_overdue(at, seen).map_or(String::new(), |late| {
                 format!("overdue by {late:.1} days at its last session")
-            } else {
-                String::new()
-            };
+            });
             Some((
                 at,
                 vec![

@@ -314,25 +314,14 @@ pub fn plot_all(
             stem = format!("{}_{n}", file_stem(&t.plant));
         }
         let out = dir.join(format!("{stem}.png"));
-        let axis = match clocks {
-            None => TimeAxis::Days,
-            Some(c) => match c.for_plant(&t.plant) {
-                Some(clock) => TimeAxis::DegreeDays(clock),
-                None => {
-                    super::atomic::replace(&out, ".png", |tmp| plot(t, tmp, TimeAxis::Days))?;
-                    drawn.in_days += 1;
-                    drawn.files.insert(t.plant.clone(), format!("{stem}.png"));
-                    continue;
-                }
-            },
-        };
-        let drawn_as = super::atomic::replace(&out, ".png", |tmp| plot(t, tmp, axis));
-        if drawn_as.is_err() && matches!(axis, TimeAxis::DegreeDays(_)) {
-            // Every x is worked out before drawing, so this is a plant the log does not cover.
+        let in_degree_days = clocks.and_then(|c| c.for_plant(&t.plant)).map(|clock| {
+            super::atomic::replace(&out, ".png", |tmp| plot(t, tmp, TimeAxis::DegreeDays(clock)))
+        });
+        // Days where asked for, and where the plant's zone has no log or one
+        // that does not cover its sessions (every x is worked out before drawing).
+        if !matches!(in_degree_days, Some(Ok(()))) {
             super::atomic::replace(&out, ".png", |tmp| plot(t, tmp, TimeAxis::Days))?;
-            drawn.in_days += 1;
-        } else {
-            drawn_as?;
+            drawn.in_days += usize::from(clocks.is_some());
         }
         drawn.files.insert(t.plant.clone(), format!("{stem}.png"));
     }

@@ -1042,15 +1042,17 @@ fn recompute(
     let last = tl.sessions.last();
     let events: Vec<(u32, NaiveDateTime)> = tl.events.iter().map(|e| (e.leaf, e.at)).collect();
     let zone = params.zones.zone_of(plant);
-    let phyllochron_cd = thermal_phyllochron(tx, &events, params.base_temp_c, zone)?;
-    let next = next_leaf(
-        tx,
-        &events,
-        tl.phyllochron_days,
-        phyllochron_cd,
-        params.base_temp_c,
-        zone,
-    )?;
+    // The log from a day before the first leaf: the phyllochron spans the
+    // leaves, the forecast the last leaf and the log's last days after it.
+    let clock = match (events.first(), events.last()) {
+        (Some(&(_, first)), Some(&(_, last))) => {
+            let since = (first - chrono::Duration::days(1))
+                .min(last - chrono::Duration::days(crate::forecast::RECENT_DAYS + 1));
+            zone_clock(tx, zone, params.base_temp_c, Some(since))?
+        }
+        _ => None,
+    };
+    let (phyllochron_cd, next) = thermal_fit(&events, tl.phyllochron_days, clock.as_ref());
     tx.execute(
         "UPDATE plants SET sessions = ?2, last_taken_at = ?3, leaves_emerged = ?4, living = ?5,
              phyllochron_days = ?6, updated_at = ?7, phyllochron_cd = ?8, climate_zone = ?9,
@@ -1101,14 +1103,10 @@ fn refresh_thermal(tx: &Transaction, params: &TimelineParams) -> anyhow::Result<
             .collect::<anyhow::Result<_>>()?;
         let zone = params.zones.zone_of(&name);
         if !clocks.contains_key(zone) {
-            clocks.insert(zone.to_string(), zone_clock(tx, zone, params.base_temp_c)?);
+            clocks.insert(zone.to_string(), zone_clock(tx, zone, params.base_temp_c, None)?);
         }
-        let clock = clocks[zone].as_ref();
-        let cd = clock.and_then(|c| crate::thermal::phyllochron(c, &events));
+        let (cd, next) = thermal_fit(&events, days, clocks[zone].as_ref());
         with += usize::from(cd.is_some());
-        let next = clock
-            .and_then(|c| crate::forecast::next_leaf_thermal(&events, cd, c))
-            .or_else(|| crate::forecast::next_leaf(&events, days));
         tx.execute(
             "UPDATE plants SET phyllochron_cd = ?2, climate_zone = ?3, next_leaf = ?4, next_leaf_at = ?5 WHERE id = ?1",
             params![id, cd, zone, next.map(|n| n.leaf), next.map(|n| iso(n.at))],
@@ -1117,15 +1115,22 @@ fn refresh_thermal(tx: &Transaction, params: &TimelineParams) -> anyhow::Result<
     Ok(with)
 }
 
-/// A thermal clock over `zone`'s whole temperature log; `None` without one.
+/// A thermal clock over `zone`'s temperature log, from `since` or all of
+/// it; `None` without readings.
 pub(crate) fn zone_clock(
     conn: &Connection,
     zone: &str,
     base_temp_c: f64,
+    since: Option<NaiveDateTime>,
 ) -> anyhow::Result<Option<crate::thermal::ThermalClock>> {
     let readings = conn
-        .prepare_cached("SELECT taken_at, temp_c FROM climate WHERE zone = ?1 ORDER BY taken_at")?
-        .query_map([zone], |r| Ok((r.get::<_, String>(0)?, r.get::<_, f64>(1)?)))?
+        .prepare_cached(
+            "SELECT taken_at, temp_c FROM climate WHERE zone = ?1 AND (?2 IS NULL OR taken_at >= ?2)
+             ORDER BY taken_at",
+        )?
+        .query_map(params![zone, since.map(iso)], |r| {
+            Ok((r.get::<_, String>(0)?, r.get::<_, f64>(1)?))
+        })?
         .map(|r| {
             let (t, c) = r?;
             Ok((parse_iso(&t)?, c))
@@ -1134,71 +1139,18 @@ pub(crate) fn zone_clock(
     Ok((!readings.is_empty()).then(|| crate::thermal::ThermalClock::new(readings, base_temp_c)))
 }
 
-/// Degree-days per leaf over `events` (leaf, emergence), from the
-/// temperatures `zone` logged around them; `None` without a log that covers them.
-fn thermal_phyllochron(
-    tx: &Transaction,
-    events: &[(u32, NaiveDateTime)],
-    base_temp_c: f64,
-    zone: &str,
-) -> anyhow::Result<Option<f64>> {
-    let (Some(first), Some(last)) = (events.iter().map(|e| e.1).min(), events.iter().map(|e| e.1).max())
-    else {
-        return Ok(None);
-    };
-    if events.len() < 2 {
-        return Ok(None);
-    }
-    // A day either side reaches the readings that bracket the first and last leaf.
-    let margin = chrono::Duration::days(1);
-    let readings: Vec<(String, f64)> = tx
-        .prepare_cached(
-            "SELECT taken_at, temp_c FROM climate WHERE zone = ?3 AND taken_at BETWEEN ?1 AND ?2",
-        )?
-        .query_map(params![iso(first - margin), iso(last + margin), zone], |r| {
-            Ok((r.get(0)?, r.get(1)?))
-        })?
-        .collect::<Result<_, _>>()?;
-    if readings.is_empty() {
-        return Ok(None);
-    }
-    let readings = readings
-        .into_iter()
-        .map(|(t, c)| Ok((parse_iso(&t)?, c)))
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    let clock = crate::thermal::ThermalClock::new(readings, base_temp_c);
-    Ok(crate::thermal::phyllochron(&clock, events))
-}
-
-/// The next leaf ([`crate::forecast`]): by thermal time where `zone`'s log
-/// covers the last leaf, else one phyllochron in days after it.
-fn next_leaf(
-    tx: &Transaction,
+/// A plant's degree-days per leaf and next leaf ([`crate::forecast`]),
+/// from `clock`, its zone's log where it has one covering its leaves.
+fn thermal_fit(
     events: &[(u32, NaiveDateTime)],
     days_per_leaf: Option<f64>,
-    cd_per_leaf: Option<f64>,
-    base_temp_c: f64,
-    zone: &str,
-) -> anyhow::Result<Option<crate::forecast::NextLeaf>> {
-    if let (Some(cd), Some(&(_, last))) = (cd_per_leaf, events.last()) {
-        // From a little before the last leaf, so the log's last days are in too.
-        let from = last - chrono::Duration::days(crate::forecast::RECENT_DAYS + 1);
-        let readings = tx
-            .prepare_cached("SELECT taken_at, temp_c FROM climate WHERE zone = ?1 AND taken_at >= ?2")?
-            .query_map(params![zone, iso(from)], |r| {
-                Ok((r.get::<_, String>(0)?, r.get::<_, f64>(1)?))
-            })?
-            .map(|r| {
-                let (t, c) = r?;
-                Ok((parse_iso(&t)?, c))
-            })
-            .collect::<anyhow::Result<Vec<_>>>()?;
-        let clock = crate::thermal::ThermalClock::new(readings, base_temp_c);
-        if let Some(next) = crate::forecast::next_leaf_thermal(events, Some(cd), &clock) {
-            return Ok(Some(next));
-        }
-    }
-    Ok(crate::forecast::next_leaf(events, days_per_leaf))
+    clock: Option<&crate::thermal::ThermalClock>,
+) -> (Option<f64>, Option<crate::forecast::NextLeaf>) {
+    let cd = clock.and_then(|c| crate::thermal::phyllochron(c, events));
+    let next = events.last().and_then(|&(leaf, _)| {
+        crate::forecast::leaf_due_by_either(events, days_per_leaf, cd, clock, leaf + 1).map(|n| n.0)
+    });
+    (cd, next)
 }
 
 fn push_feed(tx: &Transaction, row: &FeedRow, now: &str) -> anyhow::Result<()> {

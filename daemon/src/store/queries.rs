@@ -274,12 +274,18 @@ impl Store {
 
     /// Hours since the newest image file was first seen; `None` before any.
     pub fn hours_since_newest_image(&self) -> anyhow::Result<Option<f64>> {
-        Ok(self.conn.query_row(
-            // Bookkeeping times are UTC with a `Z`, which julianday reads.
-            "SELECT ROUND((julianday('now') - julianday(MAX(first_seen))) * 24, 1) FROM images",
-            [],
-            |r| r.get(0),
-        )?)
+        Ok(self
+            .conn
+            .query_row(
+                // The newest row is the newest file (rows are only appended),
+                // found by its id rather than by scanning every image; bookkeeping
+                // times are UTC with a `Z`, which julianday reads.
+                "SELECT ROUND((julianday('now') - julianday(first_seen)) * 24, 1) FROM images
+                 ORDER BY id DESC LIMIT 1",
+                [],
+                |r| r.get(0),
+            )
+            .optional()?)
     }
 
     /// The most recent failures: (path, error).
@@ -396,7 +402,7 @@ impl Store {
         base_temp_c: f64,
         zone: &str,
     ) -> anyhow::Result<Option<crate::thermal::ThermalClock>> {
-        super::zone_clock(&self.conn, zone, base_temp_c)
+        super::zone_clock(&self.conn, zone, base_temp_c, None)
     }
 
     /// All plant ids, sorted.
