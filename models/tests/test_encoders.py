@@ -1,0 +1,83 @@
+"""The ImageNet-pretrained EfficientNet-Lite0 encoder: strict loading, its input normalisation, export."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from phyllo_train.encoders import EfficientNetLite, load_pretrained, pretrained_path
+from phyllo_train.export import check_onnx, export_onnx, load_checkpoint_model
+from phyllo_train.model import CONTRACT_MEAN, CONTRACT_STD, architecture_kwargs, build_model, count_parameters
+from phyllo_train.train import param_groups
+
+DEV = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "unl-maize-dev"
+
+
+def test_wheel_weights_load_strictly_and_change_the_encoder():
+    enc = EfficientNetLite(CONTRACT_MEAN, CONTRACT_STD)
+    before = enc._blocks[3]._depthwise_conv.weight.detach().clone()
+    assert load_pretrained(enc) == 288  # every encoder tensor; the file's classifier left out
+    state = torch.load(pretrained_path(), map_location="cpu", weights_only=True)
+    assert torch.equal(enc._blocks[3]._depthwise_conv.weight, state["_blocks.3._depthwise_conv.weight"])
+    assert not torch.equal(before, enc._blocks[3]._depthwise_conv.weight)
+
+
+def _stem_gap(enc: EfficientNetLite, x: torch.Tensor) -> float:
+    """Mean standardised gap between the stem BatchNorm's running means and the batch's."""
+    with torch.no_grad():
+        a = enc._conv_stem(x * enc.in_scale + enc.in_shift)
+    bn = enc._bn0
+    live = bn.running_var > 1e-3
+    gap = (a.mean((0, 2, 3)) - bn.running_mean).abs() / bn.running_var.sqrt()
+    return float(gap[live].mean())
+
+
+@pytest.mark.skipif(not (DEV / "crops").is_dir(), reason="real dev images not present")
+def test_real_images_fit_the_tensorflow_normalisation_best():
+    """The weights came from TensorFlow: real images normalised to [-1, 1] match the stem's
+    BatchNorm statistics better than under ImageNet mean/std, which the wrapper then maps from."""
+    files = sorted((DEV / "crops").glob("*.jpg"))[:16] + sorted((DEV / "images").glob("*.jpg"))[:4]
+    x01 = torch.stack([torch.from_numpy(np.asarray(Image.open(f).convert("RGB").resize((224, 224)),
+                                                   dtype=np.float32) / 255).permute(2, 0, 1) for f in files])
+    mean, std = torch.tensor(CONTRACT_MEAN).view(1, 3, 1, 1), torch.tensor(CONTRACT_STD).view(1, 3, 1, 1)
+    enc = EfficientNetLite(CONTRACT_MEAN, CONTRACT_STD)
+    load_pretrained(enc)
+    contract_input = (x01 - mean) / std
+    tf_gap = _stem_gap(enc, contract_input)  # the wrapper's mapping to [-1, 1]
+    enc.in_scale.fill_(1.0)
+    enc.in_shift.fill_(0.0)
+    imagenet_gap = _stem_gap(enc, contract_input)
+    assert tf_gap < 0.8 * imagenet_gap, (tf_gap, imagenet_gap)
+    # And the mapping itself: contract input back to (pixel - 127) / 128.
+    enc2 = EfficientNetLite(CONTRACT_MEAN, CONTRACT_STD)
+    got = contract_input * enc2.in_scale + enc2.in_shift
+    assert torch.allclose(got, (x01 * 255 - 127) / 128, atol=1e-5)
+
+
+def test_network_on_the_encoder_exports_and_reloads(tmp_path, contract):
+    model = build_model(contract.num_classes, seed=0, encoder="efficientnet-lite0")
+    load_pretrained(model.encoder)
+    assert 2_500_000 < count_parameters(model) < 4_000_000
+    assert architecture_kwargs(model.architecture())["encoder"] == "efficientnet-lite0"
+    path = export_onnx(model, tmp_path / "lite.onnx", contract, model_name="t", trained=False, training_data="none")
+    assert max(check_onnx(path, model, contract, size=128).values()) < 1e-3
+    assert path.stat().st_size < 20_000_000
+    ck = {"model": model.state_dict(), "args": {"encoder": "efficientnet-lite0"}}
+    torch.save(ck, tmp_path / "c.pt")
+    again, _ = load_checkpoint_model(tmp_path / "c.pt", contract)
+    x = torch.randn(1, 3, 64, 64)
+    with torch.no_grad():
+        assert torch.equal(model.eval()(x)[0], again.eval()(x)[0])
+
+
+def test_encoder_learning_rate_is_scaled_and_the_decoder_is_not(contract):
+    model = build_model(contract.num_classes, seed=0, encoder="efficientnet-lite0")
+    groups = param_groups(model, 1e-4, 0.5)
+    enc = {id(p) for p in model.encoder.parameters()}
+    for g in groups:
+        inside = {id(p) in enc for p in g["params"]}
+        assert len(inside) == 1
+        assert g["lr_scale"] == (0.5 if inside == {True} else 1.0)
+    assert sum(len(g["params"]) for g in groups) == len(list(model.parameters()))
