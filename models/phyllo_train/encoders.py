@@ -64,6 +64,11 @@ class MBConv(nn.Module):
         self.residual = stride == 1 and cin == cout
         self.act = nn.ReLU6(inplace=True)
 
+    def conv_bn_pairs(self) -> list[tuple[nn.Conv2d, nn.BatchNorm2d]]:
+        """Each convolution with the BatchNorm that follows it (``from_onnx`` unfolds them)."""
+        pairs = [(self._expand_conv, self._bn0)] if self.expand else []
+        return pairs + [(self._depthwise_conv, self._bn1), (self._project_conv, self._bn2)]
+
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         y = self.act(self._bn0(self._expand_conv(x))) if self.expand else x
         y = self.act(self._bn1(self._depthwise_conv(y)))
@@ -95,6 +100,10 @@ class EfficientNetLite(nn.Module):
             for i in range(repeats):
                 blocks.append(MBConv(expand, k, stride if i == 0 else 1, cin if i == 0 else cout, cout))
         self._blocks = nn.ModuleList(blocks)
+
+    def conv_bn_pairs(self) -> list[tuple[nn.Conv2d, nn.BatchNorm2d]]:
+        """The stem's convolution and BatchNorm (the blocks list their own)."""
+        return [(self._conv_stem, self._bn0)]
 
     def forward(self, x: torch.Tensor) -> list[torch.Tensor]:
         """x: contract-normalised NCHW; returns [f2, f4, f8, f16, f32]."""

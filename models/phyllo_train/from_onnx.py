@@ -98,9 +98,12 @@ def conv_order(model: nn.Module, contract: Contract) -> list[nn.Conv2d]:
 
 
 def following_bn(model: nn.Module) -> dict[nn.Conv2d, nn.BatchNorm2d]:
-    """Each Conv2d that a BatchNorm2d directly follows in an ``nn.Sequential`` (``conv_bn``'s layout)."""
+    """Each Conv2d that a BatchNorm2d directly follows in an ``nn.Sequential`` (``conv_bn``'s layout),
+    or that a module names in its ``conv_bn_pairs()`` (the pretrained encoder's blocks)."""
     pairs: dict[nn.Conv2d, nn.BatchNorm2d] = {}
     for seq in model.modules():
+        if hasattr(seq, "conv_bn_pairs"):
+            pairs.update(dict(seq.conv_bn_pairs()))
         if isinstance(seq, nn.Sequential):
             kids = list(seq.children())
             for a, b in zip(kids, kids[1:]):

@@ -81,3 +81,25 @@ def test_encoder_learning_rate_is_scaled_and_the_decoder_is_not(contract):
         assert len(inside) == 1
         assert g["lr_scale"] == (0.5 if inside == {True} else 1.0)
     assert sum(len(g["params"]) for g in groups) == len(list(model.parameters()))
+
+
+def test_from_onnx_rebuilds_the_pretrained_network(tmp_path, contract):
+    """A later stage resumes from the committed export: the encoder's BatchNorms unfold too."""
+    from phyllo_train import from_onnx
+
+    model = build_model(contract.num_classes, seed=0, encoder="efficientnet-lite0")
+    load_pretrained(model.encoder)
+    # As after training: the decoder's folded biases differ (identical zero ones would be
+    # shared by the exporter, which from_onnx refuses).
+    torch.manual_seed(1)
+    for m in model.modules():
+        if isinstance(m, torch.nn.BatchNorm2d) and m.eps == 1e-5:
+            m.running_mean.normal_(0, 0.1)
+    path = export_onnx(model, tmp_path / "lite.onnx", contract, model_name="t", trained=False, training_data="none")
+    assert from_onnx.main([str(path), "--out", str(tmp_path / "r" / "best.pt")]) == 0
+    again, _ = load_checkpoint_model(tmp_path / "r" / "best.pt", contract)
+    assert again.encoder_name == "efficientnet-lite0"
+    x = torch.randn(1, 3, 64, 64)
+    with torch.no_grad():
+        for a, b in zip(model.eval()(x), again.eval()(x)):
+            assert torch.allclose(a, b, atol=1e-4)
