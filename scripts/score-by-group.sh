@@ -20,13 +20,6 @@ ej=$root/scripts/eval_json.py
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
-# The synthetic set's side and top views as two datasets sharing its files.
-for part in side top; do
-  mkdir -p "$tmp/$part"
-  for d in images labels meta; do [ -e "$data/$d" ] && ln -s "$data/$d" "$tmp/$part/$d"; done
-done
-grep -v '"view":"top"' "$data/manifest.jsonl" >"$tmp/side/manifest.jsonl" || true
-grep '"view":"top"' "$data/manifest.jsonl" >"$tmp/top/manifest.jsonl" || true
 # The real sets by experiment: the CSV's header and the rows of one plant-id prefix.
 for exp in 81 402; do
   for csv in leaf_tips crops_counts; do
@@ -44,9 +37,16 @@ add() { # label, then phyllo eval arguments
 }
 for model in "$@"; do
   m=$(basename "$model" .onnx)
-  add "$m: $(basename "$data") all" --model "$model" --dataset "$data" --split all
-  [ -s "$tmp/side/manifest.jsonl" ] && add "$m: side views" --model "$model" --dataset "$tmp/side" --split all
-  [ -s "$tmp/top/manifest.jsonl" ] && add "$m: top views" --model "$model" --dataset "$tmp/top" --split all
+  # One run over the synthetic set; its side and top views are scored from the per-image counts.
+  out=$("$bin" eval --threads "${THREADS:-2}" --json --per-image ${EXTRA:-} --model "$model" --dataset "$data" \
+    --split all 2>/dev/null) || { rows+=("| $m: $(basename "$data") | failed |"); continue; }
+  rows+=("$("$ej" row "$m: $(basename "$data") all" <<<"$out")")
+  intervals+=("$("$ej" intervals "$m: $(basename "$data") all" <<<"$out")")
+  for part in side top; do
+    both=$("$ej" subset "$m: $part views" "$part" <<<"$out")
+    rows+=("$(head -1 <<<"$both")")
+    intervals+=("$(tail -1 <<<"$both")")
+  done
   if [ "${REAL:-1}" = 1 ]; then
     for exp in 81 402; do
       add "$m: real frames $exp-*" --model "$model" --counts "$tmp/leaf_tips-$exp.csv" --images "$dev/images"

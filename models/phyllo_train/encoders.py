@@ -105,6 +105,11 @@ class EfficientNetLite(nn.Module):
         """The stem's convolution and BatchNorm (the blocks list their own)."""
         return [(self._conv_stem, self._bn0)]
 
+    def frozen_part(self, blocks: int) -> list[nn.Module]:
+        """The stem and the first ``blocks`` blocks: the high-resolution layers whose backward pass
+        costs most, and whose ImageNet edges and colours transfer as they are."""
+        return [self._conv_stem, self._bn0, *self._blocks[:blocks]]
+
     def forward(self, x: torch.Tensor) -> list[torch.Tensor]:
         """x: contract-normalised NCHW; returns [f2, f4, f8, f16, f32]."""
         x = self.act(self._bn0(self._conv_stem(x * self.in_scale + self.in_shift)))

@@ -165,9 +165,21 @@ def train(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_tipnet(base_path: str | Path, head_path: str | Path, contract: Contract) -> TipNet:
-    """The base network of ``base_path`` (ONNX) with the tip head of a ``train`` checkpoint."""
-    ckpt = torch.load(head_path, map_location="cpu", weights_only=False)
+def untrained_head_checkpoint(width: int = 32, seed: int = 0) -> dict:
+    """A ``train`` checkpoint of a seeded, untrained head (its heatmap stays near 0.01): the
+    test fixture ``models/phyllo-tips-untrained.onnx`` is the shipped model with one."""
+    state = torch.random.get_rng_state()
+    torch.manual_seed(seed)
+    head = TipHead(width=width)
+    torch.random.set_rng_state(state)
+    return {"head": head.state_dict(), "step": 0, "width": width, "data": []}
+
+
+def build_tipnet(base_path: str | Path, head_path: str | Path | None, contract: Contract) -> TipNet:
+    """The base network of ``base_path`` (ONNX) with the tip head of a ``train`` checkpoint
+    (``None``: an untrained head)."""
+    ckpt = (torch.load(head_path, map_location="cpu", weights_only=False) if head_path is not None
+            else untrained_head_checkpoint())
     head = TipHead(width=int(ckpt.get("width", 32)))
     head.load_state_dict(ckpt["head"])
     return TipNet(load_base(base_path, contract), head).eval()
@@ -178,7 +190,8 @@ def export(args: argparse.Namespace) -> int:
     contract = load_contract(args.contract)
     net = build_tipnet(args.base, args.head, contract)
     meta = {p.key: p.value for p in onnx.load(str(args.base)).metadata_props}
-    ckpt = torch.load(args.head, map_location="cpu", weights_only=False)
+    ckpt = (torch.load(args.head, map_location="cpu", weights_only=False) if args.head is not None
+            else untrained_head_checkpoint())
     base_name = meta.get(contract.meta_model_name, "base")
     data = (f"{meta.get(contract.meta_training_data, 'unknown')} || tip head ({ckpt['step']} steps): "
             + ", ".join(Path(d).name for d in ckpt.get("data", [])))
@@ -241,7 +254,10 @@ def main(argv: list[str] | None = None) -> int:
     ca.add_argument("--contract", default=None)
     ex = sub.add_parser("export", help="export base + tip head to ONNX")
     ex.add_argument("--base", type=Path, required=True)
-    ex.add_argument("--head", type=Path, required=True, help="RUN_DIR/last.pt of `train`")
+    heads = ex.add_mutually_exclusive_group(required=True)
+    heads.add_argument("--head", type=Path, help="RUN_DIR/last.pt of `train`")
+    heads.add_argument("--untrained-head", action="store_true",
+                       help="a seeded untrained head (the test fixture models/phyllo-tips-untrained.onnx)")
     ex.add_argument("--out", type=Path, required=True)
     ex.add_argument("--name", default=None, help="phyllo.model_name (default: <base name>-tips)")
     ex.add_argument("--check-size", type=int, default=256)

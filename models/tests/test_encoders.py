@@ -103,3 +103,18 @@ def test_from_onnx_rebuilds_the_pretrained_network(tmp_path, contract):
     with torch.no_grad():
         for a, b in zip(model.eval()(x), again.eval()(x)):
             assert torch.allclose(a, b, atol=1e-4)
+
+
+def test_freezing_the_encoder_start_fixes_its_weights_and_statistics(contract):
+    from phyllo_train.train import freeze_encoder, set_train_mode
+
+    model = build_model(contract.num_classes, seed=0, encoder="efficientnet-lite0")
+    frozen = freeze_encoder(model, 3)
+    set_train_mode(model, False, frozen)
+    assert not any(p.requires_grad for m in frozen for p in m.parameters())
+    assert all(p.requires_grad for p in model.encoder._blocks[3].parameters())
+    assert not model.encoder._bn0.training and not model.encoder._blocks[2]._bn1.training
+    assert model.encoder._blocks[3]._bn1.training and model.aspp.training
+    before = model.encoder._blocks[1]._bn1.running_mean.clone()
+    model(torch.randn(2, 3, 64, 64))
+    assert torch.equal(before, model.encoder._blocks[1]._bn1.running_mean)
