@@ -57,7 +57,8 @@
 # STEPS alone], STEPS [4000; with MINUTES an upper bound], BATCH [16], CROP
 # [512], VAL_EVERY [STEPS/4], DEVICE [cuda], WORKERS [14], RUNS [ft|--init .device/init.pt --lr 1e-4
 # --freeze-bn], OUT_DIR [$OUT], WORK [/tmp/phyllo-device], PYTHON [python3],
-# GEN [.device/phyllo-gen], GEN_ARGS [--dead-remnants 0.5: half the plants keep
+# VIEWS [0,36,72,108,144], FRAME [--full-frame; the paper's protocol: VIEWS=0,36,72,108,144,top
+# FRAME="--size 512", as the pretrained-encoder model trains], GEN [.device/phyllo-gen], GEN_ARGS [--dead-remnants 0.5: half the plants keep
 # their dead leaves' dried sheaths and blade stubs, labelled stem], SHARDS [8],
 # GEN_SECONDS [none: every shard], KEEP_EVERY [none: also bring back a slim
 # checkpoint every N steps, in steps.tar]. For the
@@ -95,8 +96,8 @@ if [ ! -e "$data/manifest.jsonl" ]; then
       break
     fi
     # shellcheck disable=SC2086 # GEN_ARGS is a word list
-    "$gen" dataset --out "$data" --plants "$plants" --seed "$seed" --views 0,36,72,108,144 \
-      --full-frame --val-fraction 0.03 --preset "$presets" --quiet --shard "$k/$shards" ${GEN_ARGS---dead-remnants 0.5}
+    "$gen" dataset --out "$data" --plants "$plants" --seed "$seed" --views "${VIEWS:-0,36,72,108,144}" \
+      ${FRAME---full-frame} --val-fraction 0.03 --preset "$presets" --quiet --shard "$k/$shards" ${GEN_ARGS---dead-remnants 0.5}
   done
   cat "$data"/manifest.shard-*.jsonl >"$data/manifest.jsonl"
 fi
