@@ -49,8 +49,11 @@ def test_grow_refuses_a_narrower_target(contract):
 
 
 def test_architecture_comes_back_from_saved_args():
-    assert architecture_kwargs(None) == {"instance_stride": 4, "dec": None, "width": None, "ins_width": None}
+    # Older checkpoints name no encoder: the original (mobilenet) layout.
+    assert architecture_kwargs(None) == {"instance_stride": 4, "dec": None, "width": None, "ins_width": None,
+                                         "encoder": None}
     kw = architecture_kwargs({"instance_stride": 4, "dec": [80, 56, 40, 32], "ins_width": 64,
                               "width": [24, 32, 48, 96, 160]})
-    assert kw == {"instance_stride": 4, "dec": (80, 56, 40, 32), "width": (24, 32, 48, 96, 160), "ins_width": 64}
+    assert kw == {"instance_stride": 4, "dec": (80, 56, 40, 32), "width": (24, 32, 48, 96, 160), "ins_width": 64,
+                  "encoder": None}
     assert count_parameters(build_model(4, seed=0, **kw)) > count_parameters(build_model(4, seed=0)) + 200_000
