@@ -11,9 +11,10 @@ The weights were converted from TensorFlow, whose EfficientNet-Lite expects
 inputs in [-1, 1] (``(pixel - 127) / 128``), not ImageNet mean/std. The
 contract's input is ``(pixel/255 - mean) / std``; :class:`EfficientNetLite`
 maps it back in its first op, so the contract is unchanged. Checked on the
-real dev images (tests/test_encoders.py): the stem BatchNorm's running means
-sit 0.76 standard deviations from the batch means under [-1, 1], 1.75 under
-ImageNet mean/std.
+real dev images (``python -m phyllo_train.encoders IMAGES...``, and
+tests/test_encoders.py): the stem BatchNorm's running means sit 0.73
+standard deviations from the batch means under [-1, 1], 1.69 under ImageNet
+mean/std.
 """
 
 from __future__ import annotations
@@ -139,3 +140,64 @@ def load_pretrained(encoder: EfficientNetLite, path: Path | None = None) -> int:
     used = {k: v for k, v in state.items() if not k.startswith(UNUSED_PREFIXES)}
     encoder.load_state_dict(used, strict=True)
     return len(used)
+
+
+def normalisation_gaps(x01: torch.Tensor, path: Path | None = None, layers: int = 10) -> dict[str, tuple[float, float]]:
+    """How well images fit the pretrained BatchNorm statistics under each candidate input
+    normalisation: per candidate, the mean standardised gap between the running means and the
+    batch means of the inputs of the stem's BatchNorm, and of the first ``layers`` BatchNorms
+    (channels with a running variance under 1e-3 left out). ``x01``: RGB in [0, 1], NCHW."""
+    from .model import CONTRACT_MEAN, CONTRACT_STD
+
+    mean, std = torch.tensor(CONTRACT_MEAN).view(1, 3, 1, 1), torch.tensor(CONTRACT_STD).view(1, 3, 1, 1)
+    candidates = {"[-1, 1] (TensorFlow)": (std * 255 / 128, (mean * 255 - 127) / 128),
+                  "ImageNet mean/std": (torch.ones(1, 3, 1, 1), torch.zeros(1, 3, 1, 1)),
+                  "[0, 1]": (std, mean)}
+    enc = EfficientNetLite(CONTRACT_MEAN, CONTRACT_STD)
+    load_pretrained(enc, path)
+    enc.eval()
+    out = {}
+    for name, (scale, shift) in candidates.items():
+        enc.in_scale.copy_(scale)
+        enc.in_shift.copy_(shift)
+        gaps: list[float] = []
+
+        def hook(mod: nn.BatchNorm2d, inputs: tuple[torch.Tensor, ...], _out: torch.Tensor) -> None:
+            a = inputs[0]
+            live = mod.running_var > 1e-3
+            gap = (a.mean((0, 2, 3)) - mod.running_mean).abs() / mod.running_var.sqrt()
+            gaps.append(float(gap[live].mean()))
+
+        hooks = [m.register_forward_hook(hook) for m in enc.modules() if isinstance(m, nn.BatchNorm2d)]
+        with torch.no_grad():
+            enc((x01 - mean) / std)
+        for h in hooks:
+            h.remove()
+        out[name] = (gaps[0], sum(gaps[:layers]) / min(layers, len(gaps)))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Prints :func:`normalisation_gaps` for images (files or folders of .jpg/.png) at 224²."""
+    import argparse
+
+    import numpy as np
+    from PIL import Image
+
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.encoders", description=main.__doc__)
+    ap.add_argument("images", nargs="+", type=Path)
+    ap.add_argument("--limit", type=int, default=20, help="images per folder")
+    args = ap.parse_args(argv)
+    files: list[Path] = []
+    for p in args.images:
+        files += sorted(q for q in p.iterdir() if q.suffix in (".jpg", ".png"))[:args.limit] if p.is_dir() else [p]
+    x01 = torch.stack([torch.from_numpy(np.asarray(Image.open(f).convert("RGB").resize((224, 224)),
+                                                   dtype=np.float32) / 255).permute(2, 0, 1) for f in files])
+    print(f"{len(files)} images; mean standardised gap to the pretrained BatchNorm running means:")
+    for name, (stem, first) in normalisation_gaps(x01).items():
+        print(f"  {name:22s} stem {stem:.3f}, first ten BatchNorms {first:.3f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
