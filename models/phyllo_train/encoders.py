@@ -147,13 +147,14 @@ def normalisation_gaps(x01: torch.Tensor, path: Path | None = None, layers: int 
     normalisation: per candidate, the mean standardised gap between the running means and the
     batch means of the inputs of the stem's BatchNorm, and of the first ``layers`` BatchNorms
     (channels with a running variance under 1e-3 left out). ``x01``: RGB in [0, 1], NCHW."""
-    from .model import CONTRACT_MEAN, CONTRACT_STD
+    from .contract import load_contract
 
-    mean, std = torch.tensor(CONTRACT_MEAN).view(1, 3, 1, 1), torch.tensor(CONTRACT_STD).view(1, 3, 1, 1)
+    contract = load_contract()
+    mean, std = torch.tensor(contract.mean).view(1, 3, 1, 1), torch.tensor(contract.std).view(1, 3, 1, 1)
     candidates = {"[-1, 1] (TensorFlow)": (std * 255 / 128, (mean * 255 - 127) / 128),
                   "ImageNet mean/std": (torch.ones(1, 3, 1, 1), torch.zeros(1, 3, 1, 1)),
                   "[0, 1]": (std, mean)}
-    enc = EfficientNetLite(CONTRACT_MEAN, CONTRACT_STD)
+    enc = EfficientNetLite(contract.mean, contract.std)
     load_pretrained(enc, path)
     enc.eval()
     out = {}
@@ -177,12 +178,18 @@ def normalisation_gaps(x01: torch.Tensor, path: Path | None = None, layers: int 
     return out
 
 
+def images_01(files: list[Path], size: int = 224) -> torch.Tensor:
+    """Images resized to ``size``², RGB in [0, 1], NCHW: what :func:`normalisation_gaps` reads."""
+    import numpy as np
+    from PIL import Image
+
+    return torch.stack([torch.from_numpy(np.asarray(Image.open(f).convert("RGB").resize((size, size)),
+                                                    dtype=np.float32) / 255).permute(2, 0, 1) for f in files])
+
+
 def main(argv: list[str] | None = None) -> int:
     """Prints :func:`normalisation_gaps` for images (files or folders of .jpg/.png) at 224²."""
     import argparse
-
-    import numpy as np
-    from PIL import Image
 
     ap = argparse.ArgumentParser(prog="python -m phyllo_train.encoders", description=main.__doc__)
     ap.add_argument("images", nargs="+", type=Path)
@@ -191,8 +198,7 @@ def main(argv: list[str] | None = None) -> int:
     files: list[Path] = []
     for p in args.images:
         files += sorted(q for q in p.iterdir() if q.suffix in (".jpg", ".png"))[:args.limit] if p.is_dir() else [p]
-    x01 = torch.stack([torch.from_numpy(np.asarray(Image.open(f).convert("RGB").resize((224, 224)),
-                                                   dtype=np.float32) / 255).permute(2, 0, 1) for f in files])
+    x01 = images_01(files)
     print(f"{len(files)} images; mean standardised gap to the pretrained BatchNorm running means:")
     for name, (stem, first) in normalisation_gaps(x01).items():
         print(f"  {name:22s} stem {stem:.3f}, first ten BatchNorms {first:.3f}")

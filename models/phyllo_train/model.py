@@ -22,13 +22,10 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from .contract import load_contract
 from .encoders import EfficientNetLite
 
 ENCODERS = ("mobilenet", "efficientnet-lite0")
-# The contract's input normalisation (ImageNet mean/std), which the pretrained
-# encoder maps back to the [-1, 1] its weights expect.
-CONTRACT_MEAN = (0.485, 0.456, 0.406)
-CONTRACT_STD = (0.229, 0.224, 0.225)
 
 
 def conv_bn(cin: int, cout: int, k: int = 1, stride: int = 1, groups: int = 1, dilation: int = 1, act: bool = True) -> nn.Sequential:
@@ -180,7 +177,9 @@ class PhylloNet(nn.Module):
             self.s16 = _stage(c8, c16, 3, 2)
             self.s32 = _stage(c16, c32, 2, 2)
         else:
-            self.encoder = EfficientNetLite(CONTRACT_MEAN, CONTRACT_STD)
+            # It maps the contract's input normalisation back to the [-1, 1] its weights expect.
+            contract = load_contract()
+            self.encoder = EfficientNetLite(contract.mean, contract.std)
         self.aspp = LiteASPP(c32, d16)
         self.up16 = FuseUp(d16, c16, d16)
         self.up8 = FuseUp(d16, c8, d8)
@@ -199,8 +198,6 @@ class PhylloNet(nn.Module):
 
     def _init_weights(self) -> None:
         for m in self.modules():
-            if isinstance(m, nn.BatchNorm2d) and m.eps != 1e-5:
-                continue  # the pretrained encoder's (TensorFlow eps): loaded, not initialised here
             if isinstance(m, nn.Conv2d):
                 nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")
                 if m.bias is not None:

@@ -175,11 +175,15 @@ def untrained_head_checkpoint(width: int = 32, seed: int = 0) -> dict:
     return {"head": head.state_dict(), "step": 0, "width": width, "data": []}
 
 
-def build_tipnet(base_path: str | Path, head_path: str | Path | None, contract: Contract) -> TipNet:
-    """The base network of ``base_path`` (ONNX) with the tip head of a ``train`` checkpoint
-    (``None``: an untrained head)."""
-    ckpt = (torch.load(head_path, map_location="cpu", weights_only=False) if head_path is not None
-            else untrained_head_checkpoint())
+def head_checkpoint(path: str | Path | None) -> dict:
+    """A ``train`` checkpoint of the tip head (``None``: a seeded, untrained head)."""
+    if path is None:
+        return untrained_head_checkpoint()
+    return torch.load(path, map_location="cpu", weights_only=False)
+
+
+def build_tipnet(base_path: str | Path, ckpt: dict, contract: Contract) -> TipNet:
+    """The base network of ``base_path`` (ONNX) with the tip head of a ``train`` checkpoint."""
     head = TipHead(width=int(ckpt.get("width", 32)))
     head.load_state_dict(ckpt["head"])
     return TipNet(load_base(base_path, contract), head).eval()
@@ -188,10 +192,9 @@ def build_tipnet(base_path: str | Path, head_path: str | Path | None, contract: 
 def export(args: argparse.Namespace) -> int:
     """Export base + tip head to ONNX with four outputs; checked against PyTorch by ONNX Runtime."""
     contract = load_contract(args.contract)
-    net = build_tipnet(args.base, args.head, contract)
+    ckpt = head_checkpoint(args.head)
+    net = build_tipnet(args.base, ckpt, contract)
     meta = {p.key: p.value for p in onnx.load(str(args.base)).metadata_props}
-    ckpt = (torch.load(args.head, map_location="cpu", weights_only=False) if args.head is not None
-            else untrained_head_checkpoint())
     base_name = meta.get(contract.meta_model_name, "base")
     data = (f"{meta.get(contract.meta_training_data, 'unknown')} || tip head ({ckpt['step']} steps): "
             + ", ".join(Path(d).name for d in ckpt.get("data", [])))

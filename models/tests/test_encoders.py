@@ -2,21 +2,19 @@
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 import torch
-from PIL import Image
 
-from phyllo_train.encoders import EfficientNetLite, load_pretrained, normalisation_gaps, pretrained_path
+from phyllo_train.encoders import EfficientNetLite, images_01, load_pretrained, normalisation_gaps, pretrained_path
 from phyllo_train.export import check_onnx, export_onnx, load_checkpoint_model
-from phyllo_train.model import CONTRACT_MEAN, CONTRACT_STD, architecture_kwargs, build_model, count_parameters
+from phyllo_train.model import architecture_kwargs, build_model, count_parameters
 from phyllo_train.train import param_groups
 
 DEV = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "unl-maize-dev"
 
 
-def test_wheel_weights_load_strictly_and_change_the_encoder():
-    enc = EfficientNetLite(CONTRACT_MEAN, CONTRACT_STD)
+def test_wheel_weights_load_strictly_and_change_the_encoder(contract):
+    enc = EfficientNetLite(contract.mean, contract.std)
     before = enc._blocks[3]._depthwise_conv.weight.detach().clone()
     assert load_pretrained(enc) == 288  # every encoder tensor; the file's classifier left out
     state = torch.load(pretrained_path(), map_location="cpu", weights_only=True)
@@ -25,18 +23,17 @@ def test_wheel_weights_load_strictly_and_change_the_encoder():
 
 
 @pytest.mark.skipif(not (DEV / "crops").is_dir(), reason="real dev images not present")
-def test_real_images_fit_the_tensorflow_normalisation_best():
+def test_real_images_fit_the_tensorflow_normalisation_best(contract):
     """The weights came from TensorFlow: real images normalised to [-1, 1] match the pretrained
     BatchNorm statistics better than under ImageNet mean/std, which the wrapper then maps from."""
     files = sorted((DEV / "crops").glob("*.jpg"))[:10] + sorted((DEV / "images").glob("*.jpg"))[:10]
-    x01 = torch.stack([torch.from_numpy(np.asarray(Image.open(f).convert("RGB").resize((224, 224)),
-                                                   dtype=np.float32) / 255).permute(2, 0, 1) for f in files])
+    x01 = images_01(files)
     gaps = normalisation_gaps(x01)
     tf, imagenet = gaps["[-1, 1] (TensorFlow)"], gaps["ImageNet mean/std"]
     assert tf[0] < 0.8 * imagenet[0] and tf[1] < 0.8 * imagenet[1], gaps
     # And the wrapper's mapping itself: contract input back to (pixel - 127) / 128.
-    mean, std = torch.tensor(CONTRACT_MEAN).view(1, 3, 1, 1), torch.tensor(CONTRACT_STD).view(1, 3, 1, 1)
-    enc = EfficientNetLite(CONTRACT_MEAN, CONTRACT_STD)
+    mean, std = torch.tensor(contract.mean).view(1, 3, 1, 1), torch.tensor(contract.std).view(1, 3, 1, 1)
+    enc = EfficientNetLite(contract.mean, contract.std)
     got = (x01 - mean) / std * enc.in_scale + enc.in_shift
     assert torch.allclose(got, (x01 * 255 - 127) / 128, atol=1e-5)
 

@@ -317,3 +317,17 @@ def test_joint_training_trains_every_head_and_exports_four_outputs(tmp_path, tin
     kept = PanopticDataset(root, "val", aug, contract, with_tips=True, max_tip_gap=4.0)[0][1]["tip"]
     every = PanopticDataset(root, "val", aug, contract, with_tips=True)[0][1]["tip"]
     assert int((kept >= 1.0).sum()) <= 1 < int((every >= 1.0).sum())
+
+
+def test_an_untrained_head_exports_beside_the_base_outputs(tmp_path, contract):
+    """`tips export --untrained-head` rebuilds the fixture models/phyllo-tips-untrained.onnx from a
+    shipped model: the base outputs unchanged and a tip map near CenterNet's 0.01 prior."""
+    out = tmp_path / "tips-untrained.onnx"
+    assert main(["export", "--base", str(MODELS / "phyllo.onnx"), "--untrained-head", "--out", str(out),
+                 "--check-size", "128"]) == 0
+    x = np.random.default_rng(1).standard_normal((1, 3, 128, 128), dtype=np.float32)
+    got = ort.InferenceSession(str(out)).run(None, {contract.input_name: x})
+    base = ort.InferenceSession(str(MODELS / "phyllo.onnx")).run(None, {contract.input_name: x})
+    for g, b in zip(got[:3], base):
+        np.testing.assert_allclose(g, b, atol=2e-4)
+    assert float(got[3].max()) < 0.05
