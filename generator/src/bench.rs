@@ -24,7 +24,13 @@ pub fn run(pairs: u32, size: u32, quality: Quality, seed: u64) -> anyhow::Result
     let mut plant_index = 0u64;
     while done < pairs {
         let t0 = Instant::now();
-        let plan = plan_plant(&presets, &Default::default(), seed, plant_index);
+        let plan = plan_plant(
+            &presets,
+            &Default::default(),
+            &crate::sampling::ZoomRange::NONE,
+            seed,
+            plant_index,
+        );
         let plant = Plant::build(&plan.traits, plan.age);
         let stage = Stage::new(&plant, &plan.preset.colour, [0.3, 0.3, 0.1], &plan.look);
         build_s += t0.elapsed().as_secs_f64();

@@ -69,6 +69,11 @@ enum Command {
         /// Most living leaves of a plant (the paper's 13 by default).
         #[arg(long, default_value_t = sampling::MAX_LEAVES)]
         max_leaves: usize,
+        /// Side-camera zoom: `Z` for every plant, `MIN-MAX` drawn per plant, or
+        /// `MIN-MAX:SHARE` for a share of the plants (the rest at 1). The
+        /// facility zooms some chambers about 2×; `1` is the paper's protocol.
+        #[arg(long, default_value = "1-2.2:0.25")]
+        zoom: String,
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
@@ -322,6 +327,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             dead_remnants,
             max_age,
             max_leaves,
+            zoom,
             quiet,
         } => {
             if !(16..=4096).contains(&size) {
@@ -351,6 +357,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 val_fraction,
                 presets: with_dead_remnants(parse_presets(preset.as_deref())?, dead_remnants)?,
                 ages,
+                zoom: sampling::ZoomRange::parse(&zoom).map_err(anyhow::Error::msg)?,
                 shard: parse_shard(&shard)?,
                 quality: quality(spp)?,
                 masks,

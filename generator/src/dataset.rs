@@ -40,6 +40,8 @@ pub struct DatasetArgs {
     pub presets: Vec<Preset>,
     /// Ages and living-leaf counts the plants are drawn from.
     pub ages: sampling::AgeRange,
+    /// Side-camera zooms the plants are drawn with.
+    pub zoom: sampling::ZoomRange,
     /// This shard `(i, n)`.
     pub shard: (u64, u64),
     /// Sampling quality.
@@ -103,10 +105,22 @@ pub struct Row {
     /// 0, so manifests without remnants read as before.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub dead_remnants: usize,
+    /// The side camera's zoom (1 for top views). Omitted at 1, so manifests
+    /// of unzoomed sets read and write as before.
+    #[serde(default = "unit_zoom", skip_serializing_if = "is_unit_zoom")]
+    pub zoom: f32,
 }
 
 fn is_zero(n: &usize) -> bool {
     *n == 0
+}
+
+fn unit_zoom() -> f32 {
+    1.0
+}
+
+fn is_unit_zoom(z: &f32) -> bool {
+    *z == 1.0
 }
 
 /// This build's `Row::generator` value.
@@ -214,11 +228,18 @@ pub struct PlantPlan {
 
 /// Plans dataset plant `index` from the master seed: the same inputs always
 /// give the same plant, whatever else the run renders.
-pub fn plan_plant(presets: &[Preset], ages: &sampling::AgeRange, seed: u64, index: u64) -> PlantPlan {
+pub fn plan_plant(
+    presets: &[Preset],
+    ages: &sampling::AgeRange,
+    zoom: &sampling::ZoomRange,
+    seed: u64,
+    index: u64,
+) -> PlantPlan {
     let preset = sampling::pick_preset(presets, seed, index).clone();
     let traits = PlantTraits::sample(&preset, rng::derive(seed, "plant", index));
     let age = sampling::pick_age(&traits, seed, index, ages);
-    let look = Look::randomised(rng::derive(seed, "look", index));
+    let mut look = Look::randomised(rng::derive(seed, "look", index));
+    look.zoom = zoom.pick(seed, index);
     PlantPlan {
         preset,
         traits,
@@ -228,7 +249,7 @@ pub fn plan_plant(presets: &[Preset], ages: &sampling::AgeRange, seed: u64, inde
 }
 
 fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) -> anyhow::Result<()> {
-    let plan = plan_plant(&args.presets, &args.ages, args.seed, p);
+    let plan = plan_plant(&args.presets, &args.ages, &args.zoom, args.seed, p);
     let plant = Plant::build(&plan.traits, plan.age);
     let panicle = plan
         .preset
@@ -294,6 +315,10 @@ fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) 
             leaf_tips,
             leaf_tip_gaps,
             dead_remnants: plant.state.remnants.len(),
+            zoom: match view {
+                View::Side(_) => plan.look.zoom,
+                View::Top => 1.0,
+            },
         };
         png_io::write_atomic(
             &meta_path(&args.out, p, view),

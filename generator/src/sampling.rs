@@ -41,6 +41,79 @@ impl Default for AgeRange {
     }
 }
 
+/// The side camera's optical zoom a dataset plant is drawn with: the
+/// facility zooms some chambers' side camera in about 2× (the pot's rim
+/// ~170 px wide in a 1227×1028 frame instead of ~85), so a `share` of the
+/// plants get a zoom drawn uniformly from `min..=max`, the rest 1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ZoomRange {
+    /// Smallest zoom of a zoomed plant.
+    pub min: f32,
+    /// Largest zoom of a zoomed plant.
+    pub max: f32,
+    /// Share of plants drawn from the range; the others keep zoom 1.
+    pub share: f32,
+}
+
+impl ZoomRange {
+    /// Every plant at the calibrated zoom (the paper's protocol).
+    pub const NONE: ZoomRange = ZoomRange {
+        min: 1.0,
+        max: 1.0,
+        share: 0.0,
+    };
+
+    /// Parses `Z` (every plant at Z), `MIN-MAX` (every plant drawn from the
+    /// range) or `MIN-MAX:SHARE`.
+    pub fn parse(spec: &str) -> Result<Self, String> {
+        let bad = || {
+            format!(
+                "--zoom {spec:?}: expected Z, MIN-MAX or MIN-MAX:SHARE, zooms in 0.25..=4, share in 0..=1"
+            )
+        };
+        let (range, share) = match spec.split_once(':') {
+            Some((r, s)) => (r, s.trim().parse::<f32>().map_err(|_| bad())?),
+            None => (spec, 1.0),
+        };
+        let (min, max) = match range.split_once('-') {
+            Some((a, b)) => (
+                a.trim().parse::<f32>().map_err(|_| bad())?,
+                b.trim().parse::<f32>().map_err(|_| bad())?,
+            ),
+            None => {
+                let z = range.trim().parse::<f32>().map_err(|_| bad())?;
+                (z, z)
+            }
+        };
+        let zoom_ok = |z: f32| (0.25..=4.0).contains(&z);
+        if !(zoom_ok(min) && zoom_ok(max) && min <= max && (0.0..=1.0).contains(&share)) {
+            return Err(bad());
+        }
+        Ok(ZoomRange { min, max, share })
+    }
+
+    /// The zoom of plant `index`. Drawn from its own streams, so the plant,
+    /// its age and its look are the same at any zoom setting.
+    pub fn pick(&self, seed: u64, index: u64) -> f32 {
+        if self.share <= 0.0 || rng::unit_from_bits(rng::derive(seed, "zoom", index)) >= self.share {
+            return 1.0;
+        }
+        let u = rng::unit_from_bits(rng::derive(seed, "zoom-factor", index));
+        self.min + (self.max - self.min) * u
+    }
+}
+
+impl Default for ZoomRange {
+    /// A quarter of the plants zoomed in by 1–2.2×, around the facility's 2×.
+    fn default() -> Self {
+        ZoomRange {
+            min: 1.0,
+            max: 2.2,
+            share: 0.25,
+        }
+    }
+}
+
 /// Picks a preset for plant `index`, weighted by the presets' weights.
 pub fn pick_preset(presets: &[Preset], seed: u64, index: u64) -> &Preset {
     if presets.len() == 1 {
@@ -146,6 +219,28 @@ mod tests {
                 traits.living_on(pick_age(&traits, 9, i, range))
             })
             .collect()
+    }
+
+    #[test]
+    fn zoom_specs_parse_and_draw_within_their_range() {
+        assert_eq!(
+            ZoomRange::parse("1").unwrap(),
+            ZoomRange {
+                min: 1.0,
+                max: 1.0,
+                share: 1.0
+            }
+        );
+        let r = ZoomRange::parse("1-2.2:0.25").unwrap();
+        assert_eq!(r, ZoomRange::default());
+        for bad in ["", "0", "2-1", "1-2:1.5", "x", "1-9"] {
+            assert!(ZoomRange::parse(bad).is_err(), "{bad:?} parsed");
+        }
+        let zooms: Vec<f32> = (0..400).map(|i| r.pick(5, i)).collect();
+        let zoomed = zooms.iter().filter(|&&z| z != 1.0).count();
+        assert!((60..=140).contains(&zoomed), "{zoomed} of 400 zoomed");
+        assert!(zooms.iter().all(|z| (1.0..=2.2).contains(z)));
+        assert!((0..50).all(|i| ZoomRange::NONE.pick(5, i) == 1.0));
     }
 
     #[test]

@@ -55,6 +55,7 @@ fn args(out: &Path, shard: (u64, u64)) -> DatasetArgs {
         val_fraction: 0.5,
         presets: vec![Preset::load("btx623").unwrap(), Preset::load("maize").unwrap()],
         ages: Default::default(),
+        zoom: phyllo_gen::sampling::ZoomRange::NONE,
         shard,
         quality: Quality { spp: 1, max_depth: 2 },
         masks: false,
@@ -406,7 +407,7 @@ fn dataset_plants_span_the_papers_ranges() {
     let presets = Preset::builtins().unwrap();
     let mut ages = Vec::new();
     for i in 0..60 {
-        let plan = dataset::plan_plant(&presets, &Default::default(), 3, i);
+        let plan = dataset::plan_plant(&presets, &Default::default(), &Default::default(), 3, i);
         let n = plan.traits.living_on(plan.age);
         assert!((4..=13).contains(&n), "plant {i}: {n} leaves at {} d", plan.age);
         assert!((7.0..=56.0).contains(&plan.age));
@@ -512,6 +513,66 @@ fn full_frame_side_views_cover_the_whole_camera_frame() {
             assert_eq!(r.frame, [614, 514]);
             assert_eq!(r.crop, [0, 0]);
         }
+    }
+}
+
+/// Leaf pixels of a whole side frame: their count and their columns' span.
+fn leaf_extent(look: &Look) -> (u32, u32) {
+    let (_, stage) = stage_for("maize", 5, 16.0, look);
+    let scene = Scene::new(&stage, look, View::Side(108.0));
+    let camera = render::camera_for(View::Side(108.0), look, 514);
+    let window = Window {
+        x0: 0,
+        y0: 0,
+        width: camera.width,
+        height: camera.height,
+    };
+    let out = render::render(&scene, &camera, look, window, Quality { spp: 1, max_depth: 1 }, 3).unwrap();
+    let c = Contract::embedded();
+    let (mut n, mut x0, mut x1) = (0, u32::MAX, 0);
+    for (i, &v) in out.label.data.iter().enumerate() {
+        if c.decode_label(v).0 == LEAF {
+            let x = i as u32 % out.label.width;
+            (n, x0, x1) = (n + 1, x0.min(x), x1.max(x));
+        }
+    }
+    (n, x1 - x0 + 1)
+}
+
+#[test]
+fn a_zoomed_camera_magnifies_the_plant_and_keeps_the_pot_in_place() {
+    let one = Look::facility();
+    let two = Look {
+        zoom: 2.0,
+        ..one.clone()
+    };
+    let (n1, w1) = leaf_extent(&one);
+    let (n2, w2) = leaf_extent(&two);
+    let area = n2 as f32 / n1 as f32;
+    let span = w2 as f32 / w1 as f32;
+    assert!((3.6..=4.4).contains(&area), "leaf area grew {area}× at zoom 2");
+    // A little over 2×: tips thinner than a pixel, missed by the pixel-centre
+    // rays at zoom 1, are hit at zoom 2.
+    assert!((1.9..=2.3).contains(&span), "leaf span grew {span}× at zoom 2");
+    // The soil at the pot's axis stays where it is in the frame.
+    let soil = |look: &Look| {
+        render::camera_for(View::Side(108.0), look, 514)
+            .project(glam::Vec3::ZERO)
+            .unwrap()
+    };
+    let (s1, s2) = (soil(&one), soil(&two));
+    assert!(
+        (s1.0 - s2.0).abs() < 0.5 && (s1.1 - s2.1).abs() < 0.5,
+        "soil {s1:?} → {s2:?}"
+    );
+    // A dataset records each side view's zoom; the top camera has none.
+    let dir = tempfile::tempdir().unwrap();
+    let mut a = args(dir.path(), (0, 1));
+    a.zoom = phyllo_gen::sampling::ZoomRange::parse("2").unwrap();
+    a.plants = 1;
+    dataset::run(&a).unwrap();
+    for r in read_rows(&dir.path().join("manifest.jsonl")) {
+        assert_eq!(r.zoom, if r.view == "top" { 1.0 } else { 2.0 }, "{}", r.view);
     }
 }
 

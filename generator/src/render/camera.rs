@@ -78,6 +78,12 @@ impl Camera {
         }
     }
 
+    /// The same camera with its focal length multiplied by `zoom`.
+    pub fn zoomed(mut self, zoom: f32) -> Self {
+        self.focal_px *= zoom;
+        self
+    }
+
     /// Top camera looking straight down; image-up points to the back wall.
     pub fn top(frame_height: u32, height: f32) -> Self {
         let width = frame_width(frame_height);

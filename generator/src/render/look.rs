@@ -38,6 +38,10 @@ pub struct Look {
     pub jpeg_quality: Option<u8>,
     /// Seed of the chamber fittings' layout; `None` is the facility layout.
     pub fittings: Option<u64>,
+    /// Optical zoom of the side camera (1: the calibrated field of view).
+    /// The camera is lowered with it so that the pot stays where it is in
+    /// the frame, as in the facility's zoomed frames.
+    pub zoom: f32,
 }
 
 impl Look {
@@ -59,6 +63,7 @@ impl Look {
             noise_sd: 0.008,
             jpeg_quality: None,
             fittings: None,
+            zoom: 1.0,
         }
     }
 
@@ -101,6 +106,7 @@ impl Look {
                 None
             },
             fittings: Some(r.random::<u64>()),
+            zoom: base.zoom,
         }
     }
 }

@@ -207,12 +207,15 @@ impl<'a> Scene<'a> {
 pub fn camera_for(view: View, look: &Look, frame_height: u32) -> Camera {
     let k = frame_height as f32 / 514.0;
     match view {
+        // Zoomed in, the camera sits lower by the same factor, so the soil
+        // stays on the frame's row (the facility's zoomed frames keep the pot there).
         View::Side(_) => Camera::side(
             frame_height,
             look.cam_distance,
-            look.cam_height,
+            look.cam_height / look.zoom,
             look.cam_shift_px * k,
-        ),
+        )
+        .zoomed(look.zoom),
         View::Top => Camera::top(frame_height, look.top_height),
     }
 }
