@@ -19,6 +19,16 @@ fn main() -> ExitCode {
         builder.init();
     }
     let cli = phyllo::cli::Cli::parse();
+    if !matches!(cli.command, phyllo::cli::Command::Serve(_)) {
+        // A command piped into `head` should end quietly when the reader
+        // leaves, as cat and grep do, rather than panic in println! or report
+        // "Broken pipe". The service keeps Rust's default (SIGPIPE ignored):
+        // a closed socket must never kill it.
+        // SAFETY: resetting one signal's disposition before any thread starts.
+        unsafe {
+            libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+        }
+    }
     match phyllo::cli::run(cli) {
         Ok(code) => code,
         Err(e) => {

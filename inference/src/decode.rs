@@ -3,7 +3,8 @@
 use std::io::Cursor;
 use std::path::Path;
 
-use image::{ImageFormat, ImageReader, RgbImage};
+use image::metadata::Orientation;
+use image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader, RgbImage};
 use serde::{Deserialize, Serialize};
 
 use crate::error::InferenceError;
@@ -73,10 +74,31 @@ pub fn decode_rgb(name: &Path, bytes: &[u8], limits: &DecodeLimits) -> Result<Rg
     lim.max_image_height = Some(limits.max_side);
     lim.max_alloc = Some(limits.max_alloc_bytes);
     reader.limits(lim);
-    let img = reader
-        .decode()
-        .map_err(|e| InferenceError::image(name, format!("corrupt or truncated {format:?}: {e}")))?;
+    let corrupt =
+        |e: image::ImageError| InferenceError::image(name, format!("corrupt or truncated {format:?}: {e}"));
+    let mut decoder = reader.into_decoder().map_err(corrupt)?;
+    if decoder.total_bytes() > limits.max_alloc_bytes {
+        return Err(InferenceError::image(
+            name,
+            format!(
+                "decoding needs {} bytes, over the limit of {}",
+                decoder.total_bytes(),
+                limits.max_alloc_bytes
+            ),
+        ));
+    }
+    // A camera or a photo tool may store the frame on its side with an EXIF
+    // orientation tag; the plant must stand upright before it is counted.
+    let orientation = decoder.orientation().unwrap_or(Orientation::NoTransforms);
+    let mut img = DynamicImage::from_decoder(decoder).map_err(corrupt)?;
+    img.apply_orientation(orientation);
     Ok(img.into_rgb8())
+}
+
+/// Reads and decodes an image file as [`decode_rgb`] does, with default limits.
+pub fn read_rgb(path: &Path) -> Result<RgbImage, InferenceError> {
+    let bytes = std::fs::read(path).map_err(|e| InferenceError::image(path, format!("cannot read: {e}")))?;
+    decode_rgb(path, &bytes, &DecodeLimits::default())
 }
 
 /// Whether a JPEG ends with its end-of-image marker (FF D9). Decoders fill a
@@ -176,5 +198,37 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("too small"), "{e}");
+    }
+
+    /// A little-endian TIFF header with one IFD entry: Orientation = `value`.
+    fn exif_orientation(value: u8) -> Vec<u8> {
+        let mut b = b"II*\0\x08\0\0\0\x01\0".to_vec();
+        b.extend_from_slice(&[0x12, 0x01, 0x03, 0x00, 0x01, 0, 0, 0, value, 0, 0, 0]);
+        b.extend_from_slice(&[0, 0, 0, 0]);
+        b
+    }
+
+    #[test]
+    fn exif_orientation_stands_the_image_upright() {
+        use image::{codecs::jpeg::JpegEncoder, ImageEncoder, Rgb};
+        // Stored on its side: 60 wide, 30 high, the top rows red (the picture's left
+        // side once turned 90° clockwise, as orientation 6 asks).
+        let stored = RgbImage::from_fn(60, 30, |_, y| {
+            if y < 10 {
+                Rgb([220, 20, 20])
+            } else {
+                Rgb([20, 200, 20])
+            }
+        });
+        let mut jpeg = Vec::new();
+        let mut enc = JpegEncoder::new_with_quality(&mut jpeg, 95);
+        enc.set_exif_metadata(exif_orientation(6)).unwrap();
+        enc.write_image(stored.as_raw(), 60, 30, image::ExtendedColorType::Rgb8)
+            .unwrap();
+        let img = decode_rgb(Path::new("side.jpg"), &jpeg, &DecodeLimits::default()).unwrap();
+        assert_eq!(img.dimensions(), (30, 60), "turned upright");
+        // Orientation 6 turns the stored image 90° clockwise: its top rows become the right columns.
+        assert!(img.get_pixel(27, 30)[0] > 150, "{:?}", img.get_pixel(27, 30));
+        assert!(img.get_pixel(5, 30)[1] > 150, "{:?}", img.get_pixel(5, 30));
     }
 }

@@ -4,7 +4,7 @@
 //! library from PyPI's wheel, a distribution package or a vendor build. The
 //! library is searched in this order, first hit wins:
 //!
-//! 1. an explicit path (`--ort-lib`, the config key `onnxruntime`);
+//! 1. an explicit path (`--ort-lib`, the config key `ort_lib` under `[inference]`);
 //! 2. the environment variable `PHYLLO_ORT_LIB` (then ort's own `ORT_DYLIB_PATH`);
 //! 3. beside the executable, and in `../lib/phyllo/` relative to it (a packaged install);
 //! 4. system locations: `/usr/lib/phyllo`, `/usr/local/lib`, `/usr/lib/x86_64-linux-gnu`, `/usr/lib`;
@@ -77,17 +77,24 @@ pub fn locate(explicit: Option<&Path>) -> Result<PathBuf, InferenceError> {
     if explicit.is_some() || cands.len() == 1 {
         return Ok(cands[0].clone());
     }
-    cands.iter().find(|p| p.is_file()).cloned().ok_or_else(|| {
-        InferenceError::Runtime(format!(
-            "libonnxruntime {ORT_VERSION} not found; set {ORT_LIB_ENV} or the config key `onnxruntime` \
-             to its path (searched: {})",
-            cands
-                .iter()
-                .map(|p| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
-        ))
-    })
+    cands
+        .iter()
+        .find(|p| p.is_file())
+        .cloned()
+        .ok_or_else(|| not_found(&cands))
+}
+
+/// The error when no candidate exists: it names every way to point phyllo at the library.
+fn not_found(searched: &[PathBuf]) -> InferenceError {
+    InferenceError::Runtime(format!(
+        "libonnxruntime {ORT_VERSION} not found; give its path with --ort-lib, {ORT_LIB_ENV} or \
+         `ort_lib` under `[inference]` in the config (searched: {})",
+        searched
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    ))
 }
 
 /// Loads ONNX Runtime once per process and returns its environment.
@@ -132,4 +139,23 @@ pub fn environment(
 /// Path of the library loaded in this process, if any.
 pub fn loaded_path() -> Option<&'static Path> {
     RUNTIME.get().map(|l| l.path.as_path())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_not_found_error_names_the_config_key_that_exists() {
+        let e = not_found(&[PathBuf::from("/x/libonnxruntime.so")]).to_string();
+        for part in [
+            "--ort-lib",
+            ORT_LIB_ENV,
+            "`ort_lib` under `[inference]`",
+            "/x/libonnxruntime.so",
+        ] {
+            assert!(e.contains(part), "{part:?} missing from {e}");
+        }
+        assert!(!e.contains("`onnxruntime`"), "{e}");
+    }
 }

@@ -301,3 +301,77 @@ fn seedlings_are_counted_again_enlarged_and_grown_plants_are_not() {
     assert_eq!(off[0]["scale"].as_f64().unwrap(), 1.0, "{}", off[0]);
     assert_eq!(off[0]["tiles"].as_u64().unwrap(), 1, "{}", off[0]);
 }
+
+/// A frame stored on its side with an EXIF orientation tag is counted as the
+/// upright frame: same size, same leaves (PNG keeps the pixels exact).
+#[test]
+fn exif_orientation_is_applied_before_counting() {
+    use image::{codecs::png::PngEncoder, ImageEncoder};
+    let src = dev_images("images", 1).remove(0);
+    let upright = image::open(&src).unwrap().to_rgb8();
+    let on_side = image::imageops::rotate270(&upright);
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, img: &image::RgbImage, orientation: Option<u8>| {
+        let path = dir.path().join(name);
+        let mut bytes = Vec::new();
+        let mut enc = PngEncoder::new(&mut bytes);
+        if let Some(o) = orientation {
+            // Little-endian TIFF header, one IFD entry: Orientation (0x0112), SHORT, 1, value.
+            let mut exif = b"II*\0\x08\0\0\0\x01\0\x12\x01\x03\0\x01\0\0\0".to_vec();
+            exif.extend_from_slice(&[o, 0, 0, 0, 0, 0, 0, 0]);
+            enc.set_exif_metadata(exif).unwrap();
+        }
+        enc.write_image(
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .unwrap();
+        std::fs::write(&path, bytes).unwrap();
+        path
+    };
+    let files = [
+        write("upright.png", &upright, None),
+        write("side.png", &on_side, Some(6)),
+    ];
+    let model = phyllo_e2e::repo_root().join("models/phyllo.onnx");
+    let (out, stdout, stderr) = run(phyllo()
+        .args(["count", "--json", "--threads", "1", "--model"])
+        .arg(&model)
+        .args(&files));
+    assert!(out.status.success(), "{stderr}");
+    let lines = json_lines(&stdout);
+    assert_eq!(lines[1]["image_size"], lines[0]["image_size"], "{stdout}");
+    assert_eq!(lines[1]["leaf_count"], lines[0]["leaf_count"], "{stdout}");
+    assert!(lines[0]["leaf_count"].as_u64().unwrap() >= 4, "{stdout}");
+}
+
+/// `phyllo count … | head -1`: the reader leaves after one line and the
+/// command ends without a panic or a "Broken pipe" message.
+#[test]
+fn a_closed_pipe_ends_the_command_quietly() {
+    use std::io::{BufRead, BufReader};
+    let files = dev_images("crops", 6);
+    let mut child = phyllo()
+        .args(["count", "--json", "--threads", "1", "--model"])
+        .arg(untrained_model())
+        .args(&files)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.contains("leaf_count"), "{first}");
+    // The reader is gone now: the next line's write hits a closed pipe.
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !stderr.contains("Broken pipe") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    assert_ne!(out.status.code(), Some(101), "a panic's exit code: {stderr}");
+}

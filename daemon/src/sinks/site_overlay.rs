@@ -28,8 +28,9 @@ pub fn draw_sites(t: &PlantTimeline, drop_dir: &Path, dir: &Path) -> anyhow::Res
     let mut unreadable = Vec::new();
     for site in &t.sites {
         let src = drop_dir.join(&site.image);
-        let full = match image::open(&src) {
-            Ok(img) => img.to_rgb8(),
+        // Decoded as counted (EXIF orientation applied), so the leaf's box lands on it.
+        let full = match phyllo_inference::decode::read_rgb(&src) {
+            Ok(img) => img,
             Err(e) => {
                 unreadable.push(format!("leaf {}: {}: {e}", site.leaf, src.display()));
                 continue;
@@ -90,11 +91,11 @@ pub fn draw_newest(timelines: &[PlantTimeline], drop_dir: &Path, dir: &Path) -> 
         let out = dir.join(&name);
         if !out.exists() {
             let src = drop_dir.join(&site.image);
-            let Ok(full) = image::open(&src) else {
+            let Ok(full) = phyllo_inference::decode::read_rgb(&src) else {
                 done.gone += 1;
                 continue;
             };
-            let img = draw(&full.to_rgb8(), site.bbox, site.centre);
+            let img = draw(&full, site.bbox, site.centre);
             write_png(&img, &out)?;
             done.drawn += 1;
         }
