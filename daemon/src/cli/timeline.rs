@@ -125,10 +125,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Where a view's column goes: side views by angle, then top views, then
+/// people's counts (`human:…`) and anything else by name.
+fn view_order(view: &str) -> (u8, u64, &str) {
+    let kind_angle = view
+        .split_once('_')
+        .and_then(|(kind, angle)| Some((kind, angle.parse::<u64>().ok()?)));
+    match kind_angle {
+        Some(("SV", angle)) => (0, angle, view),
+        Some(("TV", angle)) => (1, angle, view),
+        _ => (2, 0, view),
+    }
+}
+
 /// The timeline as a text table.
 pub fn render(t: &PlantTimeline) -> String {
     let mut views: Vec<&String> = t.sessions.iter().flat_map(|s| s.views.keys()).collect();
-    views.sort();
+    views.sort_by_key(|v| view_order(v));
     views.dedup();
     let mut s = format!("plant {}\n", t.plant);
     s += &format!("{:<24}", "session");
@@ -203,4 +216,19 @@ fn overdue(expected: &str, last_session: Option<&str>) -> String {
     crate::forecast::days_overdue(at, last).map_or(String::new(), |late| {
         format!("; not counted by the last session, {late:.1} days after it was due")
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::view_order;
+
+    #[test]
+    fn views_sort_by_angle_then_top_then_people() {
+        let mut v = ["human:ana", "SV_36", "TV_90", "SV_108", "SV_0", "SV_144", "SV_72"];
+        v.sort_by_key(|v| view_order(v));
+        assert_eq!(
+            v,
+            ["SV_0", "SV_36", "SV_72", "SV_108", "SV_144", "TV_90", "human:ana"]
+        );
+    }
 }
