@@ -170,6 +170,15 @@ fn operator_commands() {
     let gt1 = plants.lines().find(|l| l.starts_with("GT1,")).unwrap();
     let cols: Vec<&str> = gt1.split(',').collect();
     assert_eq!((cols[1], cols[6], cols[8]), ("11", "0", "6"), "{gt1}");
+    // `--what` alone writes that kind only, into the export folder.
+    let plants_csv = d.join("state/exports/plants.csv");
+    std::fs::remove_file(&plants_csv).unwrap();
+    let out = ok(&["export", "-c", cfg, "--what", "plants"]);
+    assert!(
+        out.contains("plants: 2 rows") && !out.contains("events:"),
+        "{out}"
+    );
+    assert!(plants_csv.exists());
     let bad = phyllo(&["export", "-c", cfg, "--what", "leaves"]);
     assert!(!bad.status.success());
 

@@ -15,30 +15,35 @@ use crate::store::Store;
 pub struct Args {
     #[command(flatten)]
     config: ConfigArg,
-    /// Output CSV. Without it, every kind is written to `<export.dir>/<kind>.csv`
-    /// (what the nightly timer does).
+    /// Output CSV. Without it, `--what`'s kind is written to
+    /// `<export.dir>/<kind>.csv`; without either, everything the nightly timer
+    /// writes (every table, plots, review sheet, index.html).
     #[arg(long, value_name = "FILE.csv")]
     out: Option<PathBuf>,
     /// Only rows at or after this date (YYYY-MM-DD) or time (YYYY-MM-DDTHH:MM:SS).
     #[arg(long, value_name = "DATE", value_parser = super::import::parse_since)]
     since: Option<String>,
-    /// What to export.
-    #[arg(long, default_value = "timeline", value_parser = KINDS)]
-    what: String,
+    /// What to export (with `--out` alone: timeline).
+    #[arg(long, value_parser = KINDS)]
+    what: Option<String>,
 }
 
 /// Runs `phyllo export`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let store = Store::open_read_only(&config.database)?;
-    match args.out {
-        Some(out) => {
-            let n = export::export(store.conn(), &args.what, args.since.as_deref(), &out)?;
-            println!("{}: {n} rows → {}", args.what, out.display());
-            Ok(())
+    let since = args.since.as_deref();
+    let (what, out) = match (args.what, args.out) {
+        (None, None) => return nightly(&config, &store, since),
+        (what, Some(out)) => (what.unwrap_or_else(|| "timeline".into()), out),
+        (Some(what), None) => {
+            let out = config.export_dir().join(format!("{what}.csv"));
+            (what, out)
         }
-        None => nightly(&config, &store, args.since.as_deref()),
-    }
+    };
+    let n = export::export(store.conn(), &what, since, &out)?;
+    println!("{what}: {n} rows → {}", out.display());
+    Ok(())
 }
 
 /// What the nightly timer runs: every table into `[export] dir`, every
