@@ -1,6 +1,6 @@
 """Int8 quantisation of an exported model with ONNX Runtime (static, QDQ, per-channel weights).
 
-    python -m phyllo_train.quantize phyllo-e40-s2.onnx --out /tmp/e40-int8.onnx \
+    python -m phyllo_train.quantize phyllo-e40.onnx --out /tmp/e40-int8.onnx \
         --calibrate /work/data/train-e40 --images 24 [--encoder-only]
 
 Activations are calibrated on training images (never an evaluation set), read

@@ -103,11 +103,11 @@ def test_freezing_the_encoder_start_fixes_its_weights_and_statistics(contract):
 
 
 def test_the_committed_stage_resumes_through_from_onnx(tmp_path):
-    """models/phyllo-e40-s2.onnx is where the pretrained-encoder model's next stage starts
+    """models/phyllo-e40.onnx is where the pretrained-encoder model's next stage starts
     (EXPERIMENTS.md): it must rebuild into a training checkpoint that computes what it does."""
     from phyllo_train import from_onnx
 
-    committed = Path(__file__).resolve().parents[1] / "phyllo-e40-s2.onnx"
+    committed = Path(__file__).resolve().parents[1] / "phyllo-e40.onnx"
     assert committed.stat().st_size < 20_000_000
     assert from_onnx.main([str(committed), "--out", str(tmp_path / "best.pt")]) == 0  # checks against ORT
     ck = torch.load(tmp_path / "best.pt", map_location="cpu", weights_only=False)
