@@ -72,7 +72,7 @@ enum Command {
         /// Side-camera zoom: `Z` for every plant, `MIN-MAX` drawn per plant, or
         /// `MIN-MAX:SHARE` for a share of the plants (the rest at 1). The
         /// facility zooms some chambers about 2×; `1` is the paper's protocol.
-        #[arg(long, default_value = "1-2.2:0.25")]
+        #[arg(long, default_value = sampling::ZoomRange::DEFAULT_SPEC)]
         zoom: String,
         /// No progress bar.
         #[arg(long)]

@@ -56,6 +56,10 @@ pub struct ZoomRange {
 }
 
 impl ZoomRange {
+    /// `phyllo-gen dataset`'s default `--zoom`: a quarter of the plants
+    /// zoomed in by 1–2.2×, around the facility's 2×.
+    pub const DEFAULT_SPEC: &'static str = "1-2.2:0.25";
+
     /// Every plant at the calibrated zoom (the paper's protocol).
     pub const NONE: ZoomRange = ZoomRange {
         min: 1.0,
@@ -104,13 +108,8 @@ impl ZoomRange {
 }
 
 impl Default for ZoomRange {
-    /// A quarter of the plants zoomed in by 1–2.2×, around the facility's 2×.
     fn default() -> Self {
-        ZoomRange {
-            min: 1.0,
-            max: 2.2,
-            share: 0.25,
-        }
+        Self::parse(Self::DEFAULT_SPEC).expect("the default zoom spec parses")
     }
 }
 

@@ -73,20 +73,12 @@ pub fn decode_rgb(name: &Path, bytes: &[u8], limits: &DecodeLimits) -> Result<Rg
     lim.max_image_width = Some(limits.max_side);
     lim.max_image_height = Some(limits.max_side);
     lim.max_alloc = Some(limits.max_alloc_bytes);
-    reader.limits(lim);
+    reader.limits(lim.clone());
     let corrupt =
         |e: image::ImageError| InferenceError::image(name, format!("corrupt or truncated {format:?}: {e}"));
     let mut decoder = reader.into_decoder().map_err(corrupt)?;
-    if decoder.total_bytes() > limits.max_alloc_bytes {
-        return Err(InferenceError::image(
-            name,
-            format!(
-                "decoding needs {} bytes, over the limit of {}",
-                decoder.total_bytes(),
-                limits.max_alloc_bytes
-            ),
-        ));
-    }
+    // The output buffer against the allocation limit, as ImageReader::decode does.
+    lim.reserve(decoder.total_bytes()).map_err(corrupt)?;
     // A camera or a photo tool may store the frame on its side with an EXIF
     // orientation tag; the plant must stand upright before it is counted.
     let orientation = decoder.orientation().unwrap_or(Orientation::NoTransforms);

@@ -24,12 +24,14 @@ from PIL import Image
 from .contract import load_contract
 
 
-def calibration_inputs(dataset: Path, images: int, tile: int) -> list[np.ndarray]:
-    """Normalised NCHW tiles from the dataset's manifest, spread evenly over it."""
+def calibration_inputs(dataset: Path, images: int, tile: int | None = None) -> list[np.ndarray]:
+    """Normalised NCHW tiles (``tile`` px, the contract's by default) from the dataset's manifest,
+    spread evenly over it."""
     rows = [json.loads(line) for line in (dataset / "manifest.jsonl").read_text().splitlines() if line.strip()]
     if not rows:
         raise SystemExit(f"{dataset}/manifest.jsonl: no rows")
     c = load_contract()
+    tile = tile or c.tile
     mean = np.asarray(c.mean, np.float32)[:, None, None]
     std = np.asarray(c.std, np.float32)[:, None, None]
     step = max(1, len(rows) // images)
@@ -58,10 +60,10 @@ def quantize(src: Path, out: Path, inputs: list[np.ndarray], encoder_only: bool)
     with tempfile.TemporaryDirectory() as tmp:
         pre = Path(tmp) / "pre.onnx"
         quant_pre_process(str(src), str(pre), skip_symbolic_shape=True)
-        nodes = [n.name for n in onnx.load(str(pre)).graph.node if n.name.startswith("/encoder/")]
+        nodes = ([n.name for n in onnx.load(str(pre)).graph.node if n.name.startswith("/encoder/")]
+                 if encoder_only else None)
         quantize_static(str(pre), str(out), Reader(), quant_format=QuantFormat.QDQ, per_channel=True,
-                        activation_type=QuantType.QUInt8, weight_type=QuantType.QInt8,
-                        nodes_to_quantize=nodes if encoder_only else None)
+                        activation_type=QuantType.QUInt8, weight_type=QuantType.QInt8, nodes_to_quantize=nodes)
     model, source = onnx.load(str(out)), onnx.load(str(src))
     del model.metadata_props[:]
     for p in source.metadata_props:
@@ -79,7 +81,7 @@ def main() -> None:
     ap.add_argument("--images", type=int, default=24)
     ap.add_argument("--encoder-only", action="store_true", help="quantise only the encoder's nodes")
     args = ap.parse_args()
-    inputs = calibration_inputs(args.calibrate, args.images, load_contract().tile)
+    inputs = calibration_inputs(args.calibrate, args.images)
     quantize(args.model, args.out, inputs, args.encoder_only)
     print(f"wrote {args.out} ({args.out.stat().st_size / 1e6:.1f} MB)")
 
