@@ -12,6 +12,11 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use serde::Deserialize;
 
+pub use crate::domain::climate_zone::ZoneConfig;
+pub use crate::domain::groups::GroupsConfig;
+pub use crate::domain::names::{NamesConfig, PatternConfig};
+pub use crate::domain::timeline::TimelineConfig;
+
 /// The whole configuration file.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -107,38 +112,6 @@ impl Default for WatchConfig {
     }
 }
 
-/// `[names]`: file-name patterns.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct NamesConfig {
-    /// Built-in layouts to try, in order: `flat`, `snapshot-dir`, `snapshot-file`.
-    pub presets: Vec<String>,
-    /// Extra patterns, tried before the presets.
-    pub patterns: Vec<PatternConfig>,
-}
-
-impl Default for NamesConfig {
-    fn default() -> Self {
-        Self {
-            presets: crate::names::PRESET_NAMES.iter().map(|s| s.to_string()).collect(),
-            patterns: vec![],
-        }
-    }
-}
-
-/// `[[names.patterns]]`: one custom file-name pattern.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PatternConfig {
-    /// Name shown in errors and in `phyllo status`.
-    pub name: String,
-    /// Regular expression matched against the path relative to the drop
-    /// directory, with `/` separators. Named groups: `plant`, `date`
-    /// (YYYY-MM-DD), `time` (HH-MM-SS, HH:MM:SS or HHMMSS, optional fraction)
-    /// are required; `kind` (`SV`/`side` or `TV`/`top`) and `angle` optional.
-    pub regex: String,
-}
-
 /// `[inference]`: worker pool and model.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -181,59 +154,6 @@ impl Default for InferenceConfig {
             max_attempts: 3,
             zoom_plant_height: None,
             flip: false,
-        }
-    }
-}
-
-/// `[timeline]`: view fusion and the fits across sessions.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct TimelineConfig {
-    /// How one session's views become one count: `second-max-side` (the
-    /// second-largest side-view count; top view only if there is no side view),
-    /// `max-side`, `median-side`, `mean-side`, `max` (all views), or
-    /// `view:SV_108` (that view, else `second-max-side`).
-    pub fusion: String,
-    /// Images of a plant less than this many minutes apart belong to the same
-    /// imaging session.
-    pub session_gap_minutes: f64,
-    /// Window (sessions, odd) of the centred moving median that smooths living
-    /// leaves; 1 disables smoothing.
-    pub living_window: usize,
-    /// Cost of one lost leaf when lasting drops of the side views' counts are
-    /// read as leaves that died, so later leaves keep their numbers: the views
-    /// showing a one-leaf drop must outnumber those that do not by more than
-    /// this, summed over sessions; 0 reads no deaths.
-    pub death_penalty: f64,
-    /// Base temperature (°C) of the thermal phyllochron, in degree-days per
-    /// leaf above it, once `phyllo import` has a temperature log: about 10
-    /// for sorghum, 8 to 10 for maize.
-    pub base_temp_c: f64,
-    /// Greenhouse compartments with temperature logs of their own
-    /// (`[[timeline.zones]]`); a plant takes the first whose `plants`
-    /// expression matches its id, else the facility's log.
-    pub zones: Vec<ZoneConfig>,
-}
-
-/// `[[timeline.zones]]`: one greenhouse compartment ([`crate::climate_zone`]).
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ZoneConfig {
-    /// The name a temperature log's `zone` column gives.
-    pub name: String,
-    /// Regular expression over plant ids: the plants grown in this zone.
-    pub plants: String,
-}
-
-impl Default for TimelineConfig {
-    fn default() -> Self {
-        Self {
-            fusion: "second-max-side".into(),
-            session_gap_minutes: 120.0,
-            living_window: 3,
-            death_penalty: 2.5,
-            base_temp_c: 10.0,
-            zones: Vec::new(),
         }
     }
 }
@@ -296,22 +216,6 @@ impl FeedConfig {
     pub fn keep(&self) -> Option<std::time::Duration> {
         (self.keep_days > 0.0).then(|| std::time::Duration::from_secs_f64(self.keep_days * 86_400.0))
     }
-}
-
-/// `[groups]`: the experiment's design read from plant ids, for
-/// `phyllo groups` and the nightly `groups.csv` / `group_days.csv`.
-#[derive(Debug, Clone, Default, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct GroupsConfig {
-    /// Regular expression matched against each plant id, with named groups
-    /// for its parts (`(?P<genotype>...)`). Unset: no group summaries.
-    pub pattern: Option<String>,
-    /// The named groups that make a group, in order; empty means all of them.
-    pub by: Vec<String>,
-    /// A named group of the pattern that holds the experiment's block
-    /// (replicate, bench, compartment): group comparisons are then made
-    /// within blocks and tested over them ([`crate::group_compare`]).
-    pub block: Option<String>,
 }
 
 /// `[backup]`: nightly snapshots of the database. The CSV exports hold the
@@ -402,10 +306,10 @@ impl Config {
         if !(self.feed.keep_days >= 0.0 && self.feed.keep_days.is_finite()) {
             bail!("feed.keep_days must be 0 (keep every entry) or a positive number of days");
         }
-        crate::timeline::FusionRule::parse(&self.timeline.fusion)?;
-        crate::climate_zone::ZoneRules::from_config(&self.timeline.zones)?;
-        crate::names::NamePatterns::from_config(&self.names)?;
-        crate::groups::GroupRule::from_config(&self.groups)?;
+        crate::domain::timeline::FusionRule::parse(&self.timeline.fusion)?;
+        crate::domain::climate_zone::ZoneRules::from_config(&self.timeline.zones)?;
+        crate::domain::names::NamePatterns::from_config(&self.names)?;
+        crate::domain::groups::GroupRule::from_config(&self.groups)?;
         Ok(())
     }
 

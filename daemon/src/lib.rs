@@ -18,24 +18,16 @@
 pub use phyllo_inference as inference;
 
 pub mod cli;
-pub mod climate_zone;
 pub mod config;
 pub mod counting;
 pub mod disk;
+pub mod domain;
 pub mod evaluation;
-pub mod forecast;
-pub mod group_compare;
-pub mod groups;
 pub mod import_journal;
-pub mod leaf_site;
-pub mod names;
 pub mod recount;
-pub mod review;
 pub mod service;
 pub mod sinks;
 pub mod source;
 pub mod store;
 pub mod systemd;
-pub mod thermal;
-pub mod timeline;
 pub mod worker;

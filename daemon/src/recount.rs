@@ -95,7 +95,7 @@ mod tests {
     use super::*;
     use crate::config::TimelineConfig;
     use crate::counting::CountError;
-    use crate::names::{ParsedName, View};
+    use crate::domain::names::{ParsedName, View};
     use crate::store::{CountRecord, FileFacts, Outcome};
 
     /// Counts the bytes' length, plus `extra`: a stand-in for a new model.

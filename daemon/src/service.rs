@@ -19,7 +19,7 @@ use tokio::time::MissedTickBehavior;
 
 use crate::config::Config;
 use crate::counting::LeafCounter;
-use crate::names::NamePatterns;
+use crate::domain::names::NamePatterns;
 use crate::source::intake::{Intake, ScanRequest};
 use crate::source::watch::Watch;
 use crate::source::{scan, Candidate, Filter};

@@ -17,7 +17,7 @@ use tokio::sync::mpsc;
 
 use crate::config::Config;
 use crate::counting::LeafCounter;
-use crate::names::NamePatterns;
+use crate::domain::names::NamePatterns;
 use crate::store::{FileFacts, Outcome, Precheck, Recorded, Store};
 
 /// One file to process.
@@ -150,7 +150,7 @@ enum Read {
 /// so a link swapped in between the check and the read cannot smuggle a file
 /// from outside in. Links that stay inside the drop directory are followed.
 fn read_inside(root: &Path, job: &Job) -> Read {
-    let name = crate::names::printable(&job.rel);
+    let name = crate::domain::names::printable(&job.rel);
     let link_meta = std::fs::symlink_metadata(&job.path).ok();
     let refuse = |error: String, retry: bool| Read::Refused(Refused { error, retry }, link_meta.clone());
     let file = match std::fs::File::open(&job.path) {

@@ -522,8 +522,9 @@ fn bad_input_each_kind_recorded_and_service_keeps_going() {
             .map(Result::unwrap)
             .collect::<Vec<_>>()
         };
-        let shown = phyllo::names::printable(&c.rel);
-        let file_name = phyllo::names::printable(Path::new(&c.rel).file_name().unwrap().to_str().unwrap());
+        let shown = phyllo::domain::names::printable(&c.rel);
+        let file_name =
+            phyllo::domain::names::printable(Path::new(&c.rel).file_name().unwrap().to_str().unwrap());
         let ok = match (&c.expect, got.as_slice()) {
             (Ignored, []) => true,
             (Counted, [(s, None)]) => s == "counted",

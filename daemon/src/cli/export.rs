@@ -3,9 +3,9 @@
 use std::path::PathBuf;
 
 use super::ConfigArg;
-use crate::climate_zone::{ZoneClocks, ZoneRules};
 use crate::config::{Config, PlotAxis};
-use crate::groups::GroupRule;
+use crate::domain::climate_zone::ZoneRules;
+use crate::domain::groups::GroupRule;
 use crate::sinks::export::{self, KINDS};
 use crate::sinks::{group_report, index_html, review_sheet};
 use crate::store::Store;
@@ -78,8 +78,7 @@ fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Resul
         let clocks = match config.export.plot_axis {
             PlotAxis::Days => None,
             PlotAxis::DegreeDays => {
-                let clocks = ZoneClocks::load(
-                    store,
+                let clocks = store.zone_clocks(
                     ZoneRules::from_config(&config.timeline.zones)?,
                     config.timeline.base_temp_c,
                 )?;
@@ -111,21 +110,21 @@ fn nightly(config: &Config, store: &Store, since: Option<&str>) -> anyhow::Resul
         );
         index.sites = newest.files;
     }
-    let ranked = crate::review::rank(&timelines, None);
-    let items = review_sheet::items(store, &ranked, crate::review::NIGHTLY)?;
+    let ranked = crate::domain::review::rank(&timelines, None);
+    let items = review_sheet::items(store, &ranked, crate::domain::review::NIGHTLY)?;
     let n = review_sheet::write(&dir.join("review.csv"), &items)?;
     println!("review: the {n} sessions most in doubt of {}", ranked.len());
     index.tables.push(("review.csv".into(), n));
     index.review = (ranked.len(), review_sheet::rows(&items));
     if let Some(rule) = GroupRule::from_config(&config.groups)? {
-        let rep = crate::groups::summarise(&rule, &timelines);
+        let rep = crate::domain::groups::summarise(&rule, &timelines);
         let n = group_report::write_groups(&rule, &rep, &dir.join("groups.csv"))?;
         let d = group_report::write_days(&rule, &rep, &dir.join("group_days.csv"))?;
         println!(
             "groups: {n} rows, group_days: {d} rows ({} plants match no pattern)",
             rep.unmatched.len()
         );
-        let pairs = crate::group_compare::compare(&rule, &timelines);
+        let pairs = crate::domain::group_compare::compare(&rule, &timelines);
         let c = group_report::write_pairs(&rule, &pairs, &dir.join("group_pairs.csv"))?;
         println!("group_pairs: {c} rows");
         index.tables.push(("groups.csv".into(), n));

@@ -2,7 +2,7 @@
 //! plant reaches a leaf stage. Physiologists sample and treat plants at a
 //! stage ("at six leaves"), so this says, per plant, when leaf N appeared or
 //! should appear: by thermal time where the plant's temperature log covers
-//! its last leaf, else by days ([`crate::forecast`]). Without `--leaf`, each
+//! its last leaf, else by days ([`crate::domain::forecast`]). Without `--leaf`, each
 //! plant's next leaf, as `plants.csv` gives it.
 
 use anyhow::bail;
@@ -10,7 +10,7 @@ use chrono::NaiveDateTime;
 use serde::Serialize;
 
 use super::ConfigArg;
-use crate::climate_zone::{ZoneClocks, ZoneRules};
+use crate::domain::climate_zone::{ZoneClocks, ZoneRules};
 use crate::store::{parse_iso, PlantTimeline, Store};
 
 /// Arguments of `phyllo forecast`.
@@ -48,8 +48,7 @@ pub struct Due {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let store = Store::open_read_only(&config.database)?;
-    let clocks = ZoneClocks::load(
-        &store,
+    let clocks = store.zone_clocks(
         ZoneRules::from_config(&config.timeline.zones)?,
         config.timeline.base_temp_c,
     )?;
@@ -110,7 +109,7 @@ pub fn due(t: &PlantTimeline, leaf: Option<u32>, clocks: &ZoneClocks) -> anyhow:
             how: "emerged",
         }));
     }
-    let found = crate::forecast::leaf_due_by_either(
+    let found = crate::domain::forecast::leaf_due_by_either(
         &events,
         t.phyllochron_days,
         t.phyllochron_cd,
@@ -123,8 +122,8 @@ pub fn due(t: &PlantTimeline, leaf: Option<u32>, clocks: &ZoneClocks) -> anyhow:
         leaf,
         at: crate::store::iso(n.at),
         how: match basis {
-            crate::forecast::Basis::DegreeDays => "degree-days",
-            crate::forecast::Basis::Days => "days",
+            crate::domain::forecast::Basis::DegreeDays => "degree-days",
+            crate::domain::forecast::Basis::Days => "days",
         },
     }))
 }

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::bail;
 
 use super::ConfigArg;
-use crate::groups::{GroupRule, Spread};
+use crate::domain::groups::{GroupRule, Spread};
 use crate::sinks::group_report;
 use crate::store::Store;
 
@@ -45,9 +45,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let store = Store::open_read_only(&config.database)?;
     let timelines = store.plant_timelines()?;
-    let rep = crate::groups::summarise(&rule, &timelines);
+    let rep = crate::domain::groups::summarise(&rule, &timelines);
     let pairs = if args.compare || args.csv.is_some() {
-        crate::group_compare::compare(&rule, &timelines)
+        crate::domain::group_compare::compare(&rule, &timelines)
     } else {
         Vec::new()
     };

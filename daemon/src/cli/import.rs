@@ -1,7 +1,7 @@
 //! `phyllo import --config FILE OBS.csv`: counts made elsewhere (by people or
 //! another tool) become observations, fused and fitted like the model's; a
 //! greenhouse temperature log gives every plant its phyllochron in
-//! degree-days ([`crate::thermal`]).
+//! degree-days ([`crate::domain::thermal`]).
 
 use std::path::PathBuf;
 
@@ -9,8 +9,8 @@ use anyhow::{bail, Context};
 use chrono::{NaiveDate, NaiveDateTime};
 
 use super::ConfigArg;
+use crate::domain::names::View;
 use crate::import_journal;
-use crate::names::View;
 use crate::store::{Reading, Store, WritersLock};
 
 /// Arguments of `phyllo import`.
@@ -72,7 +72,7 @@ pub fn import_file(
         Kind::Climate => {
             read_climate(
                 file,
-                &crate::climate_zone::ZoneRules::from_config(&config.timeline.zones)?,
+                &crate::domain::climate_zone::ZoneRules::from_config(&config.timeline.zones)?,
             )?;
             (0, Default::default())
         }
@@ -220,7 +220,7 @@ pub fn take(store: &mut Store, entry: &import_journal::Entry) -> anyhow::Result<
 /// A zone must be one of `zones`: a misspelt one would time no plant.
 pub fn read_climate(
     path: &std::path::Path,
-    zones: &crate::climate_zone::ZoneRules,
+    zones: &crate::domain::climate_zone::ZoneRules,
 ) -> anyhow::Result<Vec<Reading>> {
     let (mut rdr, headers) = open_csv(path)?;
     let col = |name: &str| headers.iter().position(|h| h.eq_ignore_ascii_case(name));
@@ -354,11 +354,11 @@ pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Sheet> {
         let count: u32 = count
             .parse()
             .with_context(|| format!("{}:{line}: leaf_count '{count}' is not a count", path.display()))?;
-        if count > crate::timeline::MAX_COUNT {
+        if count > crate::domain::timeline::MAX_COUNT {
             bail!(
                 "{}:{line}: leaf_count {count} is not a plausible leaf count (at most {})",
                 path.display(),
-                crate::timeline::MAX_COUNT
+                crate::domain::timeline::MAX_COUNT
             );
         }
         rows.push((plant, taken_at, View::parse(&view), count));

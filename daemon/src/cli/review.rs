@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use super::ConfigArg;
-use crate::review::{rank, NIGHTLY};
+use crate::domain::review::{rank, NIGHTLY};
 use crate::sinks::review_sheet;
 use crate::store::Store;
 

@@ -116,7 +116,7 @@ pub fn findings(h: &Health) -> Vec<(Level, String)> {
 fn log_behind(zone: &str, hours: f64) -> String {
     format!(
         "{} ends {:.1} days before its plants' newest session (import the latest log)",
-        crate::climate_zone::describe(zone),
+        crate::domain::climate_zone::describe(zone),
         hours / 24.0
     )
 }
@@ -234,7 +234,7 @@ fn show(args: Args) -> anyhow::Result<()> {
     let backup_age_hours = newest.as_ref().map(|s| s.age_hours());
     let state_dir = config.state_dir();
     let free = crate::disk::free_bytes(&state_dir).ok();
-    let in_doubt = crate::review::rank(&store.plant_timelines()?, None).len();
+    let in_doubt = crate::domain::review::rank(&store.plant_timelines()?, None).len();
     let climate = store.climate_summary()?;
     let behind = store.temperature_logs_behind(STALE_NIGHTLY_HOURS as f64)?;
     let get = |k: &str| svc.get(k).cloned().unwrap_or_else(|| "-".into());
@@ -300,7 +300,7 @@ fn show(args: Args) -> anyhow::Result<()> {
             &c.first[..c.first.len().min(16)],
             &c.last[..c.last.len().min(16)],
             c.longest_gap_hours,
-            if c.longest_gap_hours > crate::thermal::MAX_GAP_HOURS {
+            if c.longest_gap_hours > crate::domain::thermal::MAX_GAP_HOURS {
                 " (no degree-days across gaps over 6 h)"
             } else {
                 ""

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 
 use super::ConfigArg;
-use crate::climate_zone::{ZoneClocks, ZoneRules};
+use crate::domain::climate_zone::ZoneRules;
 use crate::sinks::plot::TimeAxis;
 use crate::store::{PlantTimeline, Store};
 
@@ -45,8 +45,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if args.plot.is_none() && args.plots.is_none() {
             bail!("--degree-days sets a plot's axis: give --plot OUT.png or --plots DIR");
         }
-        let clocks = ZoneClocks::load(
-            &store,
+        let clocks = store.zone_clocks(
             ZoneRules::from_config(&config.timeline.zones)?,
             config.timeline.base_temp_c,
         )?;
@@ -105,7 +104,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 format!(
                     "--degree-days: plant {plant} is timed by {}, which has no readings; import it \
                      (a temperature log whose zone column says {:?})",
-                    crate::climate_zone::describe(c.zone_of(plant)),
+                    crate::domain::climate_zone::describe(c.zone_of(plant)),
                     c.zone_of(plant)
                 )
             })?),
@@ -213,7 +212,7 @@ fn overdue(expected: &str, last_session: Option<&str>) -> String {
     ) else {
         return String::new();
     };
-    crate::forecast::days_overdue(at, last).map_or(String::new(), |late| {
+    crate::domain::forecast::days_overdue(at, last).map_or(String::new(), |late| {
         format!("; not counted by the last session, {late:.1} days after it was due")
     })
 }

@@ -44,7 +44,7 @@ fn query(kind: &str) -> anyhow::Result<&'static str> {
              WHERE ?1 IS NULL OR s.start >= ?1
              ORDER BY p.name, s.start"
         }
-        // One row per leaf emergence event, and where the leaf was first seen (crate::leaf_site).
+        // One row per leaf emergence event, and where the leaf was first seen (crate::domain::leaf_site).
         "events" => {
             "SELECT p.name AS plant, e.leaf, e.emerged_at, e.seen_at, p.phyllochron_days,
                     e.site_view, e.site_image, e.site_x, e.site_y, e.site_bbox, e.site_area

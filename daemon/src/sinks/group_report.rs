@@ -10,8 +10,8 @@ use chrono::NaiveDate;
 use plotters::prelude::*;
 
 use super::export::{format_real, write_csv};
-use crate::group_compare::Comparison;
-use crate::groups::{GroupReport, GroupRule, Spread};
+use crate::domain::group_compare::Comparison;
+use crate::domain::groups::{GroupReport, GroupRule, Spread};
 
 fn mean(s: Option<Spread>) -> String {
     s.map_or(String::new(), |s| format_real(s.mean))
@@ -87,7 +87,7 @@ fn write_table(out: &Path, (head, rows): (Vec<String>, Vec<Vec<String>>)) -> any
 }
 
 /// The `group_pairs.csv` table: per measure and pair of groups, the Welch
-/// test ([`crate::group_compare`]); a group's columns are joined by `/`.
+/// test ([`crate::domain::group_compare`]); a group's columns are joined by `/`.
 pub fn pairs_table(rule: &GroupRule, pairs: &[Comparison]) -> (Vec<String>, Vec<Vec<String>>) {
     let by = rule.columns().join("/");
     let head = [

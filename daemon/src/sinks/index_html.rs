@@ -221,7 +221,7 @@ fn leaves_due((head, rows): &(Vec<String>, Vec<Vec<String>>)) -> Due {
             if at > until {
                 return None;
             }
-            let note = crate::forecast::days_overdue(at, seen).map_or(String::new(), |late| {
+            let note = crate::domain::forecast::days_overdue(at, seen).map_or(String::new(), |late| {
                 format!("overdue by {late:.1} days at its last session")
             });
             Some((

@@ -12,8 +12,8 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::FontStyle;
 
+use crate::domain::thermal::ThermalClock;
 use crate::store::{parse_iso, PlantTimeline};
-use crate::thermal::ThermalClock;
 
 /// What a timeline plot's x axis measures from the plant's first session.
 #[derive(Debug, Clone, Copy)]
@@ -39,7 +39,7 @@ pub fn register_font() {
 
 /// Draws the timeline: per-view counts (grey; top views hollow; people's
 /// counts black crosses), fused counts (blue; ringed orange where the
-/// session is in doubt, [`crate::review`]), leaves emerged (red steps), living leaves (green), emergence events
+/// session is in doubt, [`crate::domain::review`]), leaves emerged (red steps), living leaves (green), emergence events
 /// (red ticks numbered with the leaf), and leaves read as lost (brown steps)
 /// once a plant has lost one.
 /// The x axis is days, or degree-days, since the first session.
@@ -60,7 +60,7 @@ pub fn plot(t: &PlantTimeline, out: &Path, axis: TimeAxis) -> anyhow::Result<()>
                      plot it in days",
                     t.plant,
                     first.start,
-                    crate::thermal::MAX_GAP_HOURS
+                    crate::domain::thermal::MAX_GAP_HOURS
                 )
             }),
         }
@@ -132,7 +132,7 @@ pub fn plot(t: &PlantTimeline, out: &Path, axis: TimeAxis) -> anyhow::Result<()>
     let (mut side, mut top, mut people) = (Vec::new(), Vec::new(), Vec::new());
     for (s, &x) in t.sessions.iter().zip(&xs) {
         for (v, &c) in &s.views {
-            let view = crate::names::View::parse(v);
+            let view = crate::domain::names::View::parse(v);
             let points = if view.is_top() {
                 &mut top
             } else if view.is_person() {
@@ -163,10 +163,11 @@ pub fn plot(t: &PlantTimeline, out: &Path, axis: TimeAxis) -> anyhow::Result<()>
         .legend(|(x, y)| Circle::new((x + 10, y), 5, BLUE.filled()));
     // Rings round the sessions `phyllo review` lists, so a reader knows which
     // days the timeline is least sure of.
-    let doubtful: std::collections::BTreeSet<String> = crate::review::rank(std::slice::from_ref(t), None)
-        .into_iter()
-        .map(|d| d.start)
-        .collect();
+    let doubtful: std::collections::BTreeSet<String> =
+        crate::domain::review::rank(std::slice::from_ref(t), None)
+            .into_iter()
+            .map(|d| d.start)
+            .collect();
     if !doubtful.is_empty() {
         let orange = RGBColor(230, 120, 0);
         chart
@@ -296,7 +297,7 @@ pub struct PlotFiles {
 pub fn plot_all(
     timelines: &[PlantTimeline],
     dir: &Path,
-    clocks: Option<&crate::climate_zone::ZoneClocks>,
+    clocks: Option<&crate::domain::climate_zone::ZoneClocks>,
 ) -> anyhow::Result<PlotFiles> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut drawn = PlotFiles::default();

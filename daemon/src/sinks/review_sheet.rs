@@ -1,4 +1,4 @@
-//! The review sheet: the days to check ([`crate::review`]) as a CSV a person
+//! The review sheet: the days to check ([`crate::domain::review`]) as a CSV a person
 //! fills in and hands back to `phyllo import`. Its first four columns are
 //! import's (`plant,timestamp,view,leaf_count`, the view `human` and the
 //! count left empty); the rest say what phyllo counted and where the images
@@ -8,7 +8,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::review::Doubt;
+use crate::domain::review::Doubt;
 use crate::sinks::export::{format_real, write_csv};
 use crate::store::Store;
 
@@ -96,7 +96,7 @@ pub fn write(out: &Path, items: &[Item]) -> anyhow::Result<usize> {
 mod tests {
     use super::*;
     use crate::config::TimelineConfig;
-    use crate::names::{ParsedName, View};
+    use crate::domain::names::{ParsedName, View};
     use crate::store::{CountRecord, FileFacts, Outcome};
 
     #[test]
@@ -136,7 +136,7 @@ mod tests {
                 store.record(&facts, Outcome::Counted(&name, &count)).unwrap();
             }
         }
-        let ranked = crate::review::rank(&store.plant_timelines().unwrap(), None);
+        let ranked = crate::domain::review::rank(&store.plant_timelines().unwrap(), None);
         let got = items(&store, &ranked, 1).unwrap();
         assert_eq!(got[0].doubt.start, "2026-11-02T08:00:00.000");
         assert_eq!(

@@ -50,7 +50,7 @@ pub struct Filter {
     extensions: Vec<String>,
     ignore_hidden: bool,
     /// With `[watch] skip_top_views`: the names that tell a top view.
-    skip_top: Option<crate::names::NamePatterns>,
+    skip_top: Option<crate::domain::names::NamePatterns>,
 }
 
 impl Filter {
@@ -71,7 +71,7 @@ impl Filter {
     /// The same filter, also leaving out every file `names` reads as a top
     /// view (by its name alone, so a skipped file is never read, not even by
     /// rescans).
-    pub fn skipping_top_views(mut self, names: crate::names::NamePatterns) -> Filter {
+    pub fn skipping_top_views(mut self, names: crate::domain::names::NamePatterns) -> Filter {
         self.skip_top = Some(names);
         self
     }
@@ -133,7 +133,8 @@ mod tests {
 
     #[test]
     fn top_views_are_left_out_when_asked() {
-        let names = crate::names::NamePatterns::from_config(&crate::config::NamesConfig::default()).unwrap();
+        let names =
+            crate::domain::names::NamePatterns::from_config(&crate::config::NamesConfig::default()).unwrap();
         let cfg = WatchConfig::default();
         let side = Path::new("/drop/P1_2018-04-20_10-00-00_Vis_SV_36.png");
         let top = Path::new("/drop/P1_2018-04-20_10-02-00_Vis_TV_90.png");

@@ -145,7 +145,7 @@ CREATE TABLE climate (
 ) WITHOUT ROWID;
 ALTER TABLE plants ADD COLUMN phyllochron_cd REAL;  -- °Cd per leaf; NULL without a log covering its leaves
 "#,
-    // 6: where each new leaf emerged (crate::leaf_site): the leaf instance, in
+    // 6: where each new leaf emerged (crate::domain::leaf_site): the leaf instance, in
     // the session that first counted it, taken for the new leaf.
     r#"
 ALTER TABLE events ADD COLUMN site_view TEXT;    -- the view it was found in; NULL without images' instances
@@ -155,7 +155,7 @@ ALTER TABLE events ADD COLUMN site_y REAL;
 ALTER TABLE events ADD COLUMN site_bbox TEXT;    -- JSON [x0, y0, x1, y1]
 ALTER TABLE events ADD COLUMN site_area INTEGER; -- its area, image pixels
 "#,
-    // 7: greenhouse compartments (crate::climate_zone), each with its own
+    // 7: greenhouse compartments (crate::domain::climate_zone), each with its own
     // temperature log; '' is the facility's log, which every earlier reading was.
     r#"
 CREATE TABLE climate_zoned (
@@ -180,7 +180,7 @@ CREATE TABLE reassignments (
     moved_at      TEXT NOT NULL                 -- ISO 8601, UTC
 );
 CREATE INDEX reassignments_source ON reassignments(source);
-ALTER TABLE plants ADD COLUMN next_leaf INTEGER;     -- crate::forecast: the leaf that comes next
+ALTER TABLE plants ADD COLUMN next_leaf INTEGER;     -- crate::domain::forecast: the leaf that comes next
 ALTER TABLE plants ADD COLUMN next_leaf_at TEXT;     -- and when it should appear (facility local time)
 "#,
 ];

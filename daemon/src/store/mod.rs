@@ -33,12 +33,11 @@ use anyhow::{bail, Context};
 use chrono::NaiveDateTime;
 use rusqlite::{params, Connection, OpenFlags, OptionalExtension, Transaction, TransactionBehavior};
 
-use crate::names::{ParsedName, View};
-use crate::timeline::{self, Obs, TimelineParams};
+use crate::domain::names::{ParsedName, View};
+use crate::domain::timeline::{self, Obs, TimelineParams};
 
-pub use queries::{
-    ClimateSummary, FeedRow, ImageCounts, LastImage, LeafSiteRow, NextLeafRow, PlantTimeline, SessionRow,
-};
+pub use crate::domain::plant::{LeafSiteRow, NextLeafRow, PlantTimeline, SessionRow};
+pub use queries::{ClimateSummary, FeedRow, ImageCounts, LastImage};
 
 /// Formats a facility time the way the database and exports store it.
 pub fn iso(t: NaiveDateTime) -> String {
@@ -89,7 +88,7 @@ pub struct Unimported {
 /// One air-temperature reading of a greenhouse log.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Reading {
-    /// Its zone ([`crate::climate_zone`]); `""` for the facility's log.
+    /// Its zone ([`crate::domain::climate_zone`]); `""` for the facility's log.
     pub zone: String,
     /// When it was taken (facility local time).
     pub taken_at: NaiveDateTime,
@@ -174,7 +173,10 @@ pub struct Store {
 }
 
 /// The `[timeline]` settings a fit depends on, as stored in `meta`.
-fn timeline_settings(tl: &crate::config::TimelineConfig, zones: &crate::climate_zone::ZoneRules) -> String {
+fn timeline_settings(
+    tl: &crate::config::TimelineConfig,
+    zones: &crate::domain::climate_zone::ZoneRules,
+) -> String {
     format!(
         // `leaf_sites`: where each new leaf emerged, added in schema 6; bumping
         // it refits every plant once so older events get their sites.
@@ -264,7 +266,7 @@ impl Store {
     }
 
     /// Which temperature log times each plant (the config's `[[timeline.zones]]`).
-    pub fn zone_rules(&self) -> &crate::climate_zone::ZoneRules {
+    pub fn zone_rules(&self) -> &crate::domain::climate_zone::ZoneRules {
         &self.params.zones
     }
 
@@ -1047,7 +1049,7 @@ fn recompute(
     let clock = match (events.first(), events.last()) {
         (Some(&(_, first)), Some(&(_, last))) => {
             let since = (first - chrono::Duration::days(1))
-                .min(last - chrono::Duration::days(crate::forecast::RECENT_DAYS + 1));
+                .min(last - chrono::Duration::days(crate::domain::forecast::RECENT_DAYS + 1));
             zone_clock(tx, zone, params.base_temp_c, Some(since))?
         }
         _ => None,
@@ -1090,7 +1092,7 @@ fn refresh_thermal(tx: &Transaction, params: &TimelineParams) -> anyhow::Result<
         .collect::<Result<_, _>>()?;
     // Each zone's whole log read once, not once per plant: a log imported
     // hourly would otherwise be parsed again for every plant every hour.
-    let mut clocks: BTreeMap<String, Option<crate::thermal::ThermalClock>> = BTreeMap::new();
+    let mut clocks: BTreeMap<String, Option<crate::domain::thermal::ThermalClock>> = BTreeMap::new();
     let mut with = 0;
     for (id, name, days) in plants {
         let events: Vec<(u32, NaiveDateTime)> = tx
@@ -1122,7 +1124,7 @@ pub(crate) fn zone_clock(
     zone: &str,
     base_temp_c: f64,
     since: Option<NaiveDateTime>,
-) -> anyhow::Result<Option<crate::thermal::ThermalClock>> {
+) -> anyhow::Result<Option<crate::domain::thermal::ThermalClock>> {
     let readings = conn
         .prepare_cached(
             "SELECT taken_at, temp_c FROM climate WHERE zone = ?1 AND (?2 IS NULL OR taken_at >= ?2)
@@ -1136,19 +1138,19 @@ pub(crate) fn zone_clock(
             Ok((parse_iso(&t)?, c))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
-    Ok((!readings.is_empty()).then(|| crate::thermal::ThermalClock::new(readings, base_temp_c)))
+    Ok((!readings.is_empty()).then(|| crate::domain::thermal::ThermalClock::new(readings, base_temp_c)))
 }
 
-/// A plant's degree-days per leaf and next leaf ([`crate::forecast`]),
+/// A plant's degree-days per leaf and next leaf ([`crate::domain::forecast`]),
 /// from `clock`, its zone's log where it has one covering its leaves.
 fn thermal_fit(
     events: &[(u32, NaiveDateTime)],
     days_per_leaf: Option<f64>,
-    clock: Option<&crate::thermal::ThermalClock>,
-) -> (Option<f64>, Option<crate::forecast::NextLeaf>) {
-    let cd = clock.and_then(|c| crate::thermal::phyllochron(c, events));
+    clock: Option<&crate::domain::thermal::ThermalClock>,
+) -> (Option<f64>, Option<crate::domain::forecast::NextLeaf>) {
+    let cd = clock.and_then(|c| crate::domain::thermal::phyllochron(c, events));
     let next = events.last().and_then(|&(leaf, _)| {
-        crate::forecast::leaf_due_by_either(events, days_per_leaf, cd, clock, leaf + 1).map(|n| n.0)
+        crate::domain::forecast::leaf_due_by_either(events, days_per_leaf, cd, clock, leaf + 1).map(|n| n.0)
     });
     (cd, next)
 }

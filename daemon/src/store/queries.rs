@@ -7,6 +7,8 @@ use rusqlite::{params, OptionalExtension};
 use serde::Serialize;
 
 use super::Store;
+use crate::domain::climate_zone::{ZoneClocks, ZoneRules};
+use crate::domain::plant::{LeafSiteRow, NextLeafRow, PlantTimeline, SessionRow};
 
 /// One entry of the feed `phyllo tail` follows.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -78,59 +80,10 @@ pub struct LastImage {
     pub error: Option<String>,
 }
 
-/// Everything `phyllo timeline` shows for one plant.
-#[derive(Debug, Clone, Serialize)]
-pub struct PlantTimeline {
-    /// Plant id.
-    pub plant: String,
-    /// Days per leaf.
-    pub phyllochron_days: Option<f64>,
-    /// Degree-days per leaf above `[timeline] base_temp_c`, with a temperature
-    /// log covering its leaves ([`crate::thermal`]).
-    pub phyllochron_cd: Option<f64>,
-    /// The zone whose temperature log times it ([`crate::climate_zone`]);
-    /// `""` for the facility's.
-    pub climate_zone: String,
-    /// The leaf that comes next and when it should appear ([`crate::forecast`]).
-    pub next_leaf: Option<NextLeafRow>,
-    /// Sessions: start, per-view counts, fused, leaves emerged, living.
-    pub sessions: Vec<SessionRow>,
-    /// Emergence events: leaf, estimated time, first seen.
-    pub events: Vec<(u32, String, String)>,
-    /// Where the leaves of `events` emerged, for those located ([`crate::leaf_site`]).
-    pub sites: Vec<LeafSiteRow>,
-}
-
-/// Where one new leaf emerged, as stored with its event.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct LeafSiteRow {
-    /// Leaf number.
-    pub leaf: u32,
-    /// The view it was found in.
-    pub view: String,
-    /// The image, relative to the drop directory.
-    pub image: String,
-    /// The leaf instance's predicted centre, image pixels.
-    pub centre: [f64; 2],
-    /// Its bounding box `[x0, y0, x1, y1]`.
-    pub bbox: [u32; 4],
-    /// Its area, image pixels.
-    pub area: i64,
-}
-
-/// A plant's next leaf as stored ([`crate::forecast`]).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct NextLeafRow {
-    /// Its number.
-    pub leaf: u32,
-    /// When it should appear (facility local time, ISO 8601).
-    pub expected: String,
-}
-
 /// What one zone's temperature log holds ([`Store::climate_summary`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ClimateSummary {
-    /// The zone ([`crate::climate_zone`]); `""` for the facility's log.
+    /// The zone ([`crate::domain::climate_zone`]); `""` for the facility's log.
     pub zone: String,
     /// Readings.
     pub readings: i64,
@@ -140,23 +93,6 @@ pub struct ClimateSummary {
     pub last: String,
     /// Longest time between two readings, hours.
     pub longest_gap_hours: f64,
-}
-
-/// One session row of a plant timeline.
-#[derive(Debug, Clone, Serialize)]
-pub struct SessionRow {
-    /// First image of the session.
-    pub start: String,
-    /// Count per view.
-    pub views: BTreeMap<String, f64>,
-    /// Fused count.
-    pub fused: f64,
-    /// Leaves emerged (non-decreasing fit).
-    pub leaves_emerged: f64,
-    /// Living leaves, smoothed.
-    pub living: f64,
-    /// Leaves read as dead by this session.
-    pub leaves_lost: f64,
 }
 
 fn feed_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<FeedRow> {
@@ -401,8 +337,20 @@ impl Store {
         &self,
         base_temp_c: f64,
         zone: &str,
-    ) -> anyhow::Result<Option<crate::thermal::ThermalClock>> {
+    ) -> anyhow::Result<Option<crate::domain::thermal::ThermalClock>> {
         super::zone_clock(&self.conn, zone, base_temp_c, None)
+    }
+
+    /// The thermal clocks of every zone this store holds a log for, above
+    /// `base_temp_c`, with the rules that pick each plant's zone.
+    pub fn zone_clocks(&self, rules: ZoneRules, base_temp_c: f64) -> anyhow::Result<ZoneClocks> {
+        let mut clocks = BTreeMap::new();
+        for summary in self.climate_summary()? {
+            if let Some(clock) = self.thermal_clock(base_temp_c, &summary.zone)? {
+                clocks.insert(summary.zone, clock);
+            }
+        }
+        Ok(ZoneClocks::new(rules, clocks))
     }
 
     /// All plant ids, sorted.

@@ -1,11 +1,11 @@
 //! From a plant's stored observations to each emergence event's site
-//! ([`crate::leaf_site`]): the sessions around the one that first counted a
+//! ([`crate::domain::leaf_site`]): the sessions around the one that first counted a
 //! leaf, their images' leaf instances, one site per new leaf.
 
 use chrono::NaiveDateTime;
 
-use crate::leaf_site::{self, Site, ViewLeaves};
-use crate::timeline::Timeline;
+use crate::domain::leaf_site::{self, Site, ViewLeaves};
+use crate::domain::timeline::Timeline;
 
 /// One counted image of the plant, its instances as stored (JSON text).
 #[derive(Debug, Clone)]

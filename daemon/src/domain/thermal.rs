@@ -140,7 +140,7 @@ pub fn phyllochron(clock: &ThermalClock, events: &[(u32, NaiveDateTime)]) -> Opt
         .map(|&(_, t)| clock.between(first, t))
         .collect::<Option<Vec<f64>>>()?;
     let xs: Vec<f64> = events.iter().map(|&(leaf, _)| leaf as f64).collect();
-    crate::timeline::slope(&xs, &ys)
+    crate::domain::least_squares::slope(&xs, &ys)
 }
 
 fn hours(a: NaiveDateTime, b: NaiveDateTime) -> f64 {

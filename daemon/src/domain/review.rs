@@ -15,8 +15,8 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use crate::names::View;
-use crate::store::PlantTimeline;
+use crate::domain::names::View;
+use crate::domain::plant::PlantTimeline;
 
 /// How many days to check a nightly export lists.
 pub const NIGHTLY: usize = 20;
@@ -130,7 +130,7 @@ pub fn rank(plants: &[PlantTimeline], since: Option<&str>) -> Vec<Doubt> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::store::SessionRow;
+    use crate::domain::plant::SessionRow;
 
     fn session(start: &str, views: &[(&str, f64)], fused: f64, emerged: f64, lost: f64) -> SessionRow {
         SessionRow {

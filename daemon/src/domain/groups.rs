@@ -3,14 +3,30 @@
 //! (`402-348-N276-WW-1`); `[groups] pattern` reads its parts with named
 //! groups, and `[groups] by` says which parts make a group.
 
+use serde::Deserialize;
 use std::collections::BTreeMap;
 
 use anyhow::{bail, Context};
 use regex::Regex;
 use serde::Serialize;
 
-use crate::config::GroupsConfig;
-use crate::store::PlantTimeline;
+use crate::domain::plant::PlantTimeline;
+
+/// `[groups]`: the experiment's design read from plant ids, for
+/// `phyllo groups` and the nightly `groups.csv` / `group_days.csv`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GroupsConfig {
+    /// Regular expression matched against each plant id, with named groups
+    /// for its parts (`(?P<genotype>...)`). Unset: no group summaries.
+    pub pattern: Option<String>,
+    /// The named groups that make a group, in order; empty means all of them.
+    pub by: Vec<String>,
+    /// A named group of the pattern that holds the experiment's block
+    /// (replicate, bench, compartment): group comparisons are then made
+    /// within blocks and tested over them ([`crate::domain::group_compare`]).
+    pub block: Option<String>,
+}
 
 /// How plant ids map to groups.
 #[derive(Debug, Clone)]
@@ -189,7 +205,7 @@ pub fn summarise(rule: &GroupRule, plants: &[PlantTimeline]) -> GroupReport {
     };
     for (group, members) in by_group {
         let latest: Vec<_> = members.iter().filter_map(|p| p.sessions.last()).collect();
-        let pick = |f: fn(&crate::store::SessionRow) -> f64| {
+        let pick = |f: fn(&crate::domain::plant::SessionRow) -> f64| {
             Spread::of(&latest.iter().map(|s| f(s)).collect::<Vec<_>>())
         };
         let starts = members
@@ -244,7 +260,7 @@ pub fn summarise(rule: &GroupRule, plants: &[PlantTimeline]) -> GroupReport {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::store::SessionRow;
+    use crate::domain::plant::SessionRow;
 
     fn rule(pattern: &str, by: &[&str]) -> anyhow::Result<Option<GroupRule>> {
         GroupRule::from_config(&GroupsConfig {

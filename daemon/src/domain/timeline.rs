@@ -42,8 +42,54 @@
 
 use anyhow::bail;
 use chrono::{Duration, NaiveDateTime};
+use serde::Deserialize;
 
-use crate::names::View;
+use crate::domain::climate_zone::ZoneConfig;
+use crate::domain::least_squares;
+use crate::domain::names::View;
+
+/// `[timeline]`: view fusion and the fits across sessions.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TimelineConfig {
+    /// How one session's views become one count: `second-max-side` (the
+    /// second-largest side-view count; top view only if there is no side view),
+    /// `max-side`, `median-side`, `mean-side`, `max` (all views), or
+    /// `view:SV_108` (that view, else `second-max-side`).
+    pub fusion: String,
+    /// Images of a plant less than this many minutes apart belong to the same
+    /// imaging session.
+    pub session_gap_minutes: f64,
+    /// Window (sessions, odd) of the centred moving median that smooths living
+    /// leaves; 1 disables smoothing.
+    pub living_window: usize,
+    /// Cost of one lost leaf when lasting drops of the side views' counts are
+    /// read as leaves that died, so later leaves keep their numbers: the views
+    /// showing a one-leaf drop must outnumber those that do not by more than
+    /// this, summed over sessions; 0 reads no deaths.
+    pub death_penalty: f64,
+    /// Base temperature (°C) of the thermal phyllochron, in degree-days per
+    /// leaf above it, once `phyllo import` has a temperature log: about 10
+    /// for sorghum, 8 to 10 for maize.
+    pub base_temp_c: f64,
+    /// Greenhouse compartments with temperature logs of their own
+    /// (`[[timeline.zones]]`); a plant takes the first whose `plants`
+    /// expression matches its id, else the facility's log.
+    pub zones: Vec<ZoneConfig>,
+}
+
+impl Default for TimelineConfig {
+    fn default() -> Self {
+        Self {
+            fusion: "second-max-side".into(),
+            session_gap_minutes: 120.0,
+            living_window: 3,
+            death_penalty: 2.5,
+            base_temp_c: 10.0,
+            zones: Vec::new(),
+        }
+    }
+}
 
 /// How the views of one imaging session are fused into one count.
 #[derive(Debug, Clone, PartialEq)]
@@ -195,29 +241,29 @@ pub struct TimelineParams {
     pub living_window: usize,
     /// Cost of one lost leaf in [`deaths`]; 0 reads no deaths.
     pub death_penalty: f64,
-    /// Base temperature of the thermal phyllochron ([`crate::thermal`]).
+    /// Base temperature of the thermal phyllochron ([`crate::domain::thermal`]).
     pub base_temp_c: f64,
-    /// Which temperature log times each plant ([`crate::climate_zone`]).
-    pub zones: crate::climate_zone::ZoneRules,
+    /// Which temperature log times each plant ([`crate::domain::climate_zone`]).
+    pub zones: crate::domain::climate_zone::ZoneRules,
 }
 
 impl TimelineParams {
     /// Builds the parameters from the config section (already validated).
-    pub fn from_config(cfg: &crate::config::TimelineConfig) -> anyhow::Result<TimelineParams> {
+    pub fn from_config(cfg: &TimelineConfig) -> anyhow::Result<TimelineParams> {
         Ok(TimelineParams {
             fusion: FusionRule::parse(&cfg.fusion)?,
             session_gap: Duration::milliseconds((cfg.session_gap_minutes * 60_000.0) as i64),
             living_window: cfg.living_window,
             death_penalty: cfg.death_penalty,
             base_temp_c: cfg.base_temp_c,
-            zones: crate::climate_zone::ZoneRules::from_config(&cfg.zones)?,
+            zones: crate::domain::climate_zone::ZoneRules::from_config(&cfg.zones)?,
         })
     }
 }
 
 impl Default for TimelineParams {
     fn default() -> Self {
-        Self::from_config(&crate::config::TimelineConfig::default()).expect("defaults are valid")
+        Self::from_config(&TimelineConfig::default()).expect("defaults are valid")
     }
 }
 
@@ -513,16 +559,7 @@ fn phyllochron(events: &[Event]) -> Option<f64> {
         .iter()
         .map(|e| (e.at - t0).num_milliseconds() as f64 / 86_400_000.0)
         .collect();
-    slope(&xs, &ys)
-}
-
-/// The least-squares slope of `ys` on `xs`; `None` when the `xs` do not vary.
-pub(crate) fn slope(xs: &[f64], ys: &[f64]) -> Option<f64> {
-    let n = xs.len() as f64;
-    let (mx, my) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
-    let sxy: f64 = xs.iter().zip(ys).map(|(x, y)| (x - mx) * (y - my)).sum();
-    let sxx: f64 = xs.iter().map(|x| (x - mx) * (x - mx)).sum();
-    (sxx > 0.0).then(|| sxy / sxx)
+    least_squares::slope(&xs, &ys)
 }
 
 #[cfg(test)]

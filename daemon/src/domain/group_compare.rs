@@ -1,5 +1,5 @@
 //! Are two groups different? Pairwise Welch t-tests between every two groups
-//! on what [`crate::groups`] summarises per plant: phyllochron (days per
+//! on what [`crate::domain::groups`] summarises per plant: phyllochron (days per
 //! leaf, and degree-days per leaf with a temperature log) and leaves emerged
 //! at each plant's latest session.
 //!
@@ -23,8 +23,8 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 use statrs::distribution::{ContinuousCDF, StudentsT};
 
-use crate::groups::GroupRule;
-use crate::store::PlantTimeline;
+use crate::domain::groups::GroupRule;
+use crate::domain::plant::PlantTimeline;
 
 /// One group's plant values: block (`""` without blocks) → one list per measure.
 type Blocks = BTreeMap<String, [Vec<f64>; 3]>;
@@ -215,8 +215,8 @@ fn holm(pairs: &mut [Comparison]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::GroupsConfig;
-    use crate::store::SessionRow;
+    use crate::domain::groups::GroupsConfig;
+    use crate::domain::plant::SessionRow;
 
     fn plant(name: &str, phyllochron: f64, emerged: f64) -> PlantTimeline {
         PlantTimeline {

@@ -8,14 +8,23 @@
 //! log of the first zone whose expression matches its id. A plant in no zone,
 //! and a log row without a zone, belong to the facility's log (zone `""`).
 
+use serde::Deserialize;
 use std::collections::BTreeMap;
 
 use anyhow::{bail, Context};
 use regex::Regex;
 
-use crate::config::ZoneConfig;
-use crate::store::Store;
-use crate::thermal::ThermalClock;
+use crate::domain::thermal::ThermalClock;
+
+/// `[[timeline.zones]]`: one greenhouse compartment ([`crate::domain::climate_zone`]).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ZoneConfig {
+    /// The name a temperature log's `zone` column gives.
+    pub name: String,
+    /// Regular expression over plant ids: the plants grown in this zone.
+    pub plants: String,
+}
 
 /// The facility's log: readings without a zone, for plants in none.
 pub const FACILITY: &str = "";
@@ -83,15 +92,10 @@ pub struct ZoneClocks {
 }
 
 impl ZoneClocks {
-    /// The clocks of every zone `store` holds a log for, above `base_temp_c`.
-    pub fn load(store: &Store, rules: ZoneRules, base_temp_c: f64) -> anyhow::Result<ZoneClocks> {
-        let mut clocks = BTreeMap::new();
-        for summary in store.climate_summary()? {
-            if let Some(clock) = store.thermal_clock(base_temp_c, &summary.zone)? {
-                clocks.insert(summary.zone, clock);
-            }
-        }
-        Ok(ZoneClocks { rules, clocks })
+    /// Every zone's clock (`zone → clock`, [`FACILITY`] for the facility's log)
+    /// and the rules that pick a plant's zone.
+    pub fn new(rules: ZoneRules, clocks: BTreeMap<String, ThermalClock>) -> ZoneClocks {
+        ZoneClocks { rules, clocks }
     }
 
     /// The clock that times `plant`'s leaves; `None` when its zone has no log.

@@ -18,7 +18,7 @@
 
 use chrono::{Duration, NaiveDateTime};
 
-use crate::thermal::ThermalClock;
+use crate::domain::thermal::ThermalClock;
 
 /// Days of the log whose warmth is carried past its end.
 pub const RECENT_DAYS: i64 = 3;

@@ -6,6 +6,7 @@
 //! (with `/` separators), so the snapshot layouts can take the plant and time
 //! from the folder name.
 
+use serde::Deserialize;
 use std::fmt;
 use std::path::Path;
 
@@ -13,7 +14,37 @@ use anyhow::{bail, Context};
 use chrono::{NaiveDate, NaiveDateTime, NaiveTime};
 use regex::Regex;
 
-use crate::config::NamesConfig;
+/// `[names]`: file-name patterns.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NamesConfig {
+    /// Built-in layouts to try, in order: `flat`, `snapshot-dir`, `snapshot-file`.
+    pub presets: Vec<String>,
+    /// Extra patterns, tried before the presets.
+    pub patterns: Vec<PatternConfig>,
+}
+
+impl Default for NamesConfig {
+    fn default() -> Self {
+        Self {
+            presets: PRESET_NAMES.iter().map(|s| s.to_string()).collect(),
+            patterns: vec![],
+        }
+    }
+}
+
+/// `[[names.patterns]]`: one custom file-name pattern.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PatternConfig {
+    /// Name shown in errors and in `phyllo status`.
+    pub name: String,
+    /// Regular expression matched against the path relative to the drop
+    /// directory, with `/` separators. Named groups: `plant`, `date`
+    /// (YYYY-MM-DD), `time` (HH-MM-SS, HH:MM:SS or HHMMSS, optional fraction)
+    /// are required; `kind` (`SV`/`side` or `TV`/`top`) and `angle` optional.
+    pub regex: String,
+}
 
 /// Names of the built-in presets, in the order they are tried by default.
 pub const PRESET_NAMES: [&str; 3] = ["flat", "snapshot-dir", "snapshot-file"];
@@ -231,7 +262,6 @@ fn parse_datetime(date: &str, time: &str) -> anyhow::Result<NaiveDateTime> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::PatternConfig;
 
     fn defaults() -> NamePatterns {
         NamePatterns::from_config(&NamesConfig::default()).unwrap()
