@@ -13,9 +13,11 @@ use std::time::{Duration, SystemTime};
 
 use anyhow::{bail, Context};
 use chrono::NaiveDateTime;
-use rusqlite::{Connection, OpenFlags};
+use rusqlite::Connection;
 
 use super::atomic::sync_dir;
+use crate::store::snapshot;
+pub use crate::store::snapshot::Contents;
 
 /// File-name prefix and suffix of a snapshot: `phyllo-<YYYY-MM-DD>T<HHMMSS>[-N].sqlite`.
 const PREFIX: &str = "phyllo-";
@@ -44,28 +46,13 @@ impl Snapshot {
     }
 }
 
-/// What a new snapshot holds, read back from the copy itself.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct Contents {
-    /// Image versions recorded.
-    pub images: i64,
-    /// Plants with a timeline.
-    pub plants: i64,
-    /// Schema version (`PRAGMA user_version`).
-    pub schema: i64,
-}
-
 /// Writes a snapshot of `conn`'s database into `dir`, named for `now`.
 pub fn snapshot(conn: &Connection, dir: &Path, now: NaiveDateTime) -> anyhow::Result<(Snapshot, Contents)> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating backup directory {}", dir.display()))?;
     remove_stale_work(dir);
     // VACUUM INTO writes at most the live pages; refuse before writing if
     // that would leave the service (often on the same disk) too little.
-    let need: u64 = conn.query_row(
-        "SELECT page_count * page_size FROM pragma_page_count(), pragma_page_size()",
-        [],
-        |r| r.get::<_, i64>(0),
-    )? as u64;
+    let need = snapshot::live_bytes(conn)?;
     let free = crate::disk::free_bytes(dir)?;
     if free < need + crate::disk::SNAPSHOT_RESERVE_BYTES {
         bail!(
@@ -85,13 +72,13 @@ pub fn snapshot(conn: &Connection, dir: &Path, now: NaiveDateTime) -> anyhow::Re
     let copy_str = copy
         .to_str()
         .with_context(|| format!("backup directory {} is not valid UTF-8", dir.display()))?;
-    conn.execute("VACUUM INTO ?1", [copy_str])
+    snapshot::copy_into(conn, copy_str)
         .with_context(|| format!("copying the database into {}", copy.display()))?;
     std::fs::File::open(&copy)
         .and_then(|f| f.sync_all())
         .with_context(|| format!("syncing {}", copy.display()))?;
     let contents = check(&copy)?;
-    let source_schema: i64 = conn.pragma_query_value(None, "user_version", |r| r.get(0))?;
+    let source_schema = snapshot::schema_version(conn)?;
     if contents.schema != source_schema {
         bail!(
             "snapshot {} has schema {} but the database has {source_schema}",
@@ -117,29 +104,7 @@ pub fn snapshot(conn: &Connection, dir: &Path, now: NaiveDateTime) -> anyhow::Re
 /// Opens a snapshot read-only, runs SQLite's full integrity check and reads
 /// what it holds. Also what an operator runs on a snapshot before restoring it.
 pub fn check(path: &Path) -> anyhow::Result<Contents> {
-    let conn = Connection::open_with_flags(path, OpenFlags::SQLITE_OPEN_READ_ONLY)
-        .with_context(|| format!("opening snapshot {}", path.display()))?;
-    let problems: Vec<String> = conn
-        .prepare("PRAGMA integrity_check")?
-        .query_map([], |r| r.get::<_, String>(0))?
-        .collect::<Result<_, _>>()
-        .with_context(|| format!("checking snapshot {}", path.display()))?;
-    if problems != ["ok"] {
-        bail!(
-            "snapshot {} fails SQLite's integrity check: {}",
-            path.display(),
-            problems.join("; ")
-        );
-    }
-    let one = |sql: &str| -> anyhow::Result<i64> {
-        conn.query_row(sql, [], |r| r.get(0))
-            .with_context(|| format!("reading snapshot {} ({sql})", path.display()))
-    };
-    Ok(Contents {
-        images: one("SELECT COUNT(*) FROM images")?,
-        plants: one("SELECT COUNT(*) FROM plants")?,
-        schema: one("PRAGMA user_version")?,
-    })
+    crate::store::snapshot::check_file(path)
 }
 
 /// What [`restore`] did.

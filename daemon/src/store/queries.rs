@@ -338,7 +338,7 @@ impl Store {
         base_temp_c: f64,
         zone: &str,
     ) -> anyhow::Result<Option<crate::domain::thermal::ThermalClock>> {
-        super::zone_clock(&self.conn, zone, base_temp_c, None)
+        super::derive::zone_clock(&self.conn, zone, base_temp_c, None)
     }
 
     /// The thermal clocks of every zone this store holds a log for, above

@@ -11,7 +11,11 @@ use std::collections::BTreeMap;
 use anyhow::{bail, Context};
 use rusqlite::{params, TransactionBehavior};
 
-use super::{now_utc, push_feed, recompute, record_import, upsert_plant, Announce, FeedRow, Store};
+use super::derive::{refit_plants, Announce};
+use super::feed::push_feed;
+use super::images::upsert_plant;
+use super::imports::record_import;
+use super::{now_utc, FeedRow, Store};
 
 impl Store {
     /// Moves each image of `moves` (path relative to the drop directory,
@@ -74,17 +78,8 @@ impl Store {
                     .or_default() += 1;
             }
         }
-        for (id, name) in &touched {
-            recompute(
-                &tx,
-                &self.params,
-                &self.fusion_name,
-                *id,
-                name,
-                &now,
-                Announce::Each,
-            )?;
-        }
+        let touched: Vec<(i64, String)> = touched.into_iter().collect();
+        refit_plants(&tx, &self.fit, &touched, &now, Announce::Each, |_, _| None)?;
         for ((from, to), n) in &moved {
             push_feed(
                 &tx,

@@ -5,7 +5,8 @@
 use anyhow::Context;
 use rusqlite::{params, OptionalExtension, TransactionBehavior};
 
-use super::{now_utc, push_feed, CountRecord, FeedRow, Store};
+use super::feed::push_feed;
+use super::{now_utc, CountRecord, FeedRow, Store};
 
 /// One counted image, as the store holds it.
 #[derive(Debug, Clone, PartialEq)]

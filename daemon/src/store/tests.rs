@@ -6,6 +6,7 @@ use chrono::{Duration, NaiveDate};
 
 use super::*;
 use crate::config::TimelineConfig;
+use crate::domain::names::{ParsedName, View};
 use crate::worker::sha256_hex;
 
 fn open(dir: &tempfile::TempDir) -> Store {
