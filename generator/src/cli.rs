@@ -3,13 +3,14 @@
 
 use crate::climate::ClimateSpec;
 use crate::dataset::{self, DatasetArgs};
+use crate::date::Date;
 use crate::plant::{growth::PlantTraits, preset::Preset, Plant};
 use crate::render::{self, look::Look, Quality, Scene, Stage, View, Window};
-use crate::sequence::{self, Date, SequenceArgs};
+use crate::sequence::{self, SequenceArgs};
 use crate::{bench, png_io, rng, sampling};
 use anyhow::{bail, Context};
-use clap::{Parser, Subcommand};
-use std::path::PathBuf;
+use clap::{Args, Parser, Subcommand};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Synthetic sorghum images with exact panoptic labels for phyllo.
@@ -23,61 +24,7 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Render a training dataset: images, labels, manifest.jsonl.
-    Dataset {
-        /// Output folder.
-        #[arg(long)]
-        out: PathBuf,
-        /// Number of plants.
-        #[arg(long)]
-        plants: u64,
-        /// Master seed.
-        #[arg(long)]
-        seed: u64,
-        /// Views: side angles in degrees and/or `top`.
-        #[arg(long, default_value = "0,36,72,108,144,top")]
-        views: String,
-        /// Side of the square training crop in pixels (frame scale, never rescaled).
-        #[arg(long, default_value_t = 512)]
-        size: u32,
-        /// Write whole side-camera frames (614x514 at the contract scale,
-        /// chamber fittings at the edges included) instead of square crops.
-        #[arg(long)]
-        full_frame: bool,
-        /// Fraction of plants held out for validation.
-        #[arg(long, default_value_t = 0.1)]
-        val_fraction: f32,
-        /// Preset names or .toml paths, comma-separated, each optionally `:WEIGHT` (e.g. `btx623,maize:0.5`; default: all weighted built-ins).
-        #[arg(long)]
-        preset: Option<String>,
-        /// Render shard I of N (plants with index % N == I), e.g. 3/16.
-        #[arg(long, default_value = "0/1")]
-        shard: String,
-        /// Camera samples per pixel.
-        #[arg(long, default_value_t = Quality::default().spp)]
-        spp: u32,
-        /// Also write human-viewable colour masks to masks/.
-        #[arg(long)]
-        masks: bool,
-        /// Share of plants whose dead leaves leave a dried sheath and a blade
-        /// stub (labelled stem); overrides every preset's `dead_remnant_chance`.
-        #[arg(long)]
-        dead_remnants: Option<f32>,
-        /// Oldest plant age in days. Past the default 8 weeks maize reaches the
-        /// 14–15 leaves of the facility's late plants (with --max-leaves).
-        #[arg(long, default_value_t = sampling::MAX_AGE)]
-        max_age: f32,
-        /// Most living leaves of a plant (the paper's 13 by default).
-        #[arg(long, default_value_t = sampling::MAX_LEAVES)]
-        max_leaves: usize,
-        /// Side-camera zoom: `Z` for every plant, `MIN-MAX` drawn per plant, or
-        /// `MIN-MAX:SHARE` for a share of the plants (the rest at 1). The
-        /// facility zooms some chambers about 2×; `1` is the paper's protocol.
-        #[arg(long, default_value = sampling::ZoomRange::DEFAULT_SPEC)]
-        zoom: String,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
-    },
+    Dataset(DatasetCmd),
     /// Convert a rendered dataset to COCO panoptic format (DIR/coco/), for
     /// detectron2 or mmdetection.
     Coco {
@@ -85,57 +32,7 @@ enum Command {
         dir: PathBuf,
     },
     /// Render plants growing over days, as facility-named camera frames + truth.csv.
-    Sequence {
-        /// Output folder (e.g. the daemon's watch folder).
-        #[arg(long)]
-        out: PathBuf,
-        /// Number of plants.
-        #[arg(long)]
-        plants: u64,
-        /// Number of imaging days.
-        #[arg(long)]
-        days: u32,
-        /// Master seed.
-        #[arg(long)]
-        seed: u64,
-        /// First imaging date (YYYY-MM-DD).
-        #[arg(long, default_value = "2018-04-10")]
-        start_date: String,
-        /// Plant age in days on the first imaging date.
-        #[arg(long, default_value_t = 14.0)]
-        start_age: f32,
-        /// Days between imaging sessions.
-        #[arg(long, default_value_t = 1)]
-        interval: u32,
-        /// Views per session.
-        #[arg(long, default_value = "0,36,72,108,144,top")]
-        views: String,
-        /// Camera frame height; width follows the 2454x2056 aspect.
-        #[arg(long, default_value_t = 514)]
-        frame_height: u32,
-        /// Preset names or .toml paths, comma-separated, each optionally `:WEIGHT`.
-        #[arg(long)]
-        preset: Option<String>,
-        /// Camera samples per pixel.
-        #[arg(long, default_value_t = Quality::default().spp)]
-        spp: u32,
-        /// Also write panoptic labels to labels/.
-        #[arg(long)]
-        labels: bool,
-        /// Share of plants whose dead leaves leave a dried sheath and a blade
-        /// stub (labelled stem); overrides every preset's `dead_remnant_chance`.
-        #[arg(long)]
-        dead_remnants: Option<f32>,
-        /// Greenhouse air temperature `MEAN[,SWING[,DRIFT]]` in °C (daily mean,
-        /// half the day–night swing [4], day-to-day spread [1.5]): plants then
-        /// develop by degree-days above 10 °C (the presets' days hold at 25 °C),
-        /// and the log is written as climate.csv for `phyllo import`.
-        #[arg(long)]
-        climate: Option<String>,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
-    },
+    Sequence(SequenceCmd),
     /// Measure rays/s and image+label pairs/s at training quality.
     Bench {
         /// Pairs to render.
@@ -152,43 +49,11 @@ enum Command {
         seed: u64,
     },
     /// Render one full camera frame (image, label, mask) of one plant.
-    Render {
-        /// Preset name or .toml path.
-        #[arg(long, default_value = "btx623")]
-        preset: String,
-        /// Plant seed.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Age in days after sowing.
-        #[arg(long, default_value_t = 35.0)]
-        age: f32,
-        /// View: side angle in degrees or `top`.
-        #[arg(long, default_value = "108")]
-        view: String,
-        /// Camera frame height.
-        #[arg(long, default_value_t = 514)]
-        frame_height: u32,
-        /// Camera samples per pixel.
-        #[arg(long, default_value_t = 16)]
-        spp: u32,
-        /// Output RGB PNG; the label goes beside it as `.label.png`, the mask as `.mask.png`.
-        #[arg(long)]
-        out: PathBuf,
-        /// Leave dead leaves' remnants (dried sheath, blade stub) on the plant.
-        #[arg(long)]
-        dead_remnants: bool,
-    },
+    Render(RenderCmd),
     /// Export a plant mesh as OBJ (one group per leaf).
     Mesh {
-        /// Preset name or .toml path.
-        #[arg(long, default_value = "btx623")]
-        preset: String,
-        /// Plant seed.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Age in days after sowing.
-        #[arg(long, default_value_t = 35.0)]
-        age: f32,
+        #[command(flatten)]
+        plant: PlantArgs,
         /// Output .obj file.
         #[arg(long)]
         out: PathBuf,
@@ -198,6 +63,155 @@ enum Command {
         /// Preset files to validate.
         files: Vec<PathBuf>,
     },
+}
+
+/// Options of `dataset`, checked and turned into [`DatasetArgs`] by [`DatasetCmd::run`].
+#[derive(Args, Debug)]
+struct DatasetCmd {
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Number of plants.
+    #[arg(long)]
+    plants: u64,
+    /// Master seed.
+    #[arg(long)]
+    seed: u64,
+    /// Views: side angles in degrees and/or `top`.
+    #[arg(long, default_value = "0,36,72,108,144,top")]
+    views: String,
+    /// Side of the square training crop in pixels (frame scale, never rescaled).
+    #[arg(long, default_value_t = 512)]
+    size: u32,
+    /// Write whole side-camera frames (614x514 at the contract scale,
+    /// chamber fittings at the edges included) instead of square crops.
+    #[arg(long)]
+    full_frame: bool,
+    /// Fraction of plants held out for validation.
+    #[arg(long, default_value_t = 0.1)]
+    val_fraction: f32,
+    /// Preset names or .toml paths, comma-separated, each optionally `:WEIGHT` (e.g. `btx623,maize:0.5`; default: all weighted built-ins).
+    #[arg(long)]
+    preset: Option<String>,
+    /// Render shard I of N (plants with index % N == I), e.g. 3/16.
+    #[arg(long, default_value = "0/1")]
+    shard: String,
+    /// Camera samples per pixel.
+    #[arg(long, default_value_t = Quality::default().spp)]
+    spp: u32,
+    /// Also write human-viewable colour masks to masks/.
+    #[arg(long)]
+    masks: bool,
+    /// Share of plants whose dead leaves leave a dried sheath and a blade
+    /// stub (labelled stem); overrides every preset's `dead_remnant_chance`.
+    #[arg(long)]
+    dead_remnants: Option<f32>,
+    /// Oldest plant age in days. Past the default 8 weeks maize reaches the
+    /// 14–15 leaves of the facility's late plants (with --max-leaves).
+    #[arg(long, default_value_t = sampling::MAX_AGE)]
+    max_age: f32,
+    /// Most living leaves of a plant (the paper's 13 by default).
+    #[arg(long, default_value_t = sampling::MAX_LEAVES)]
+    max_leaves: usize,
+    /// Side-camera zoom: `Z` for every plant, `MIN-MAX` drawn per plant, or
+    /// `MIN-MAX:SHARE` for a share of the plants (the rest at 1). The
+    /// facility zooms some chambers about 2×; `1` is the paper's protocol.
+    #[arg(long, default_value = sampling::ZoomRange::DEFAULT_SPEC)]
+    zoom: String,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// Options of `sequence`, checked and turned into [`SequenceArgs`] by [`SequenceCmd::run`].
+#[derive(Args, Debug)]
+struct SequenceCmd {
+    /// Output folder (e.g. the daemon's watch folder).
+    #[arg(long)]
+    out: PathBuf,
+    /// Number of plants.
+    #[arg(long)]
+    plants: u64,
+    /// Number of imaging days.
+    #[arg(long)]
+    days: u32,
+    /// Master seed.
+    #[arg(long)]
+    seed: u64,
+    /// First imaging date (YYYY-MM-DD).
+    #[arg(long, default_value = "2018-04-10")]
+    start_date: String,
+    /// Plant age in days on the first imaging date.
+    #[arg(long, default_value_t = 14.0)]
+    start_age: f32,
+    /// Days between imaging sessions.
+    #[arg(long, default_value_t = 1)]
+    interval: u32,
+    /// Views per session.
+    #[arg(long, default_value = "0,36,72,108,144,top")]
+    views: String,
+    /// Camera frame height; width follows the 2454x2056 aspect.
+    #[arg(long, default_value_t = 514)]
+    frame_height: u32,
+    /// Preset names or .toml paths, comma-separated, each optionally `:WEIGHT`.
+    #[arg(long)]
+    preset: Option<String>,
+    /// Camera samples per pixel.
+    #[arg(long, default_value_t = Quality::default().spp)]
+    spp: u32,
+    /// Also write panoptic labels to labels/.
+    #[arg(long)]
+    labels: bool,
+    /// Share of plants whose dead leaves leave a dried sheath and a blade
+    /// stub (labelled stem); overrides every preset's `dead_remnant_chance`.
+    #[arg(long)]
+    dead_remnants: Option<f32>,
+    /// Greenhouse air temperature `MEAN[,SWING[,DRIFT]]` in °C (daily mean,
+    /// half the day–night swing [4], day-to-day spread [1.5]): plants then
+    /// develop by degree-days above 10 °C (the presets' days hold at 25 °C),
+    /// and the log is written as climate.csv for `phyllo import`.
+    #[arg(long)]
+    climate: Option<String>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// Options of `render`.
+#[derive(Args, Debug)]
+struct RenderCmd {
+    #[command(flatten)]
+    plant: PlantArgs,
+    /// View: side angle in degrees or `top`.
+    #[arg(long, default_value = "108")]
+    view: String,
+    /// Camera frame height.
+    #[arg(long, default_value_t = 514)]
+    frame_height: u32,
+    /// Camera samples per pixel.
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+    /// Output RGB PNG; the label goes beside it as `.label.png`, the mask as `.mask.png`.
+    #[arg(long)]
+    out: PathBuf,
+    /// Leave dead leaves' remnants (dried sheath, blade stub) on the plant.
+    #[arg(long)]
+    dead_remnants: bool,
+}
+
+/// The plant that `render` and `mesh` build: one set of options, so the
+/// two commands take them alike.
+#[derive(Args, Debug)]
+struct PlantArgs {
+    /// Preset name or .toml path.
+    #[arg(long, default_value = "btx623")]
+    preset: String,
+    /// Plant seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Age in days after sowing.
+    #[arg(long, default_value_t = 35.0)]
+    age: f32,
 }
 
 /// Parses `I/N` with `I < N`.
@@ -312,7 +326,30 @@ fn check_age(age: f32) -> anyhow::Result<()> {
 /// Runs a parsed command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Dataset {
+        Command::Dataset(cmd) => cmd.run(),
+        Command::Sequence(cmd) => cmd.run(),
+        Command::Bench {
+            pairs,
+            size,
+            spp,
+            seed,
+        } => {
+            if pairs == 0 {
+                bail!("--pairs must be at least 1");
+            }
+            bench::run(pairs, size, quality(spp)?, seed)
+        }
+        Command::Render(cmd) => cmd.run(),
+        Command::Mesh { plant, out } => mesh(&plant, &out),
+        Command::Coco { dir } => coco(&dir),
+        Command::Presets { files } => presets(files),
+    }
+}
+
+impl DatasetCmd {
+    /// Checks what clap cannot (ranges, preset, zoom and shard syntax), then runs.
+    fn run(self) -> anyhow::Result<()> {
+        let DatasetCmd {
             out,
             plants,
             seed,
@@ -329,42 +366,47 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             max_leaves,
             zoom,
             quiet,
-        } => {
-            if !(16..=4096).contains(&size) {
-                bail!("--size {size} must lie in 16..=4096");
-            }
-            let ages = sampling::AgeRange {
-                max_age,
-                max_leaves,
-                ..Default::default()
-            };
-            if !(ages.max_age > ages.min_age && ages.max_age <= 365.0) {
-                bail!("--max-age {max_age} must lie in ({}, 365] days", ages.min_age);
-            }
-            if ages.max_leaves < ages.min_leaves {
-                bail!("--max-leaves {max_leaves} must be at least {}", ages.min_leaves);
-            }
-            if !(0.0..=1.0).contains(&val_fraction) {
-                bail!("--val-fraction {val_fraction} must lie in [0, 1]");
-            }
-            dataset::run(&DatasetArgs {
-                out,
-                plants,
-                seed,
-                views: parse_views(&views)?,
-                size,
-                full_frame,
-                val_fraction,
-                presets: with_dead_remnants(parse_presets(preset.as_deref())?, dead_remnants)?,
-                ages,
-                zoom: sampling::ZoomRange::parse(&zoom).map_err(anyhow::Error::msg)?,
-                shard: parse_shard(&shard)?,
-                quality: quality(spp)?,
-                masks,
-                quiet,
-            })
+        } = self;
+        if !(16..=4096).contains(&size) {
+            bail!("--size {size} must lie in 16..=4096");
         }
-        Command::Sequence {
+        let ages = sampling::AgeRange {
+            max_age,
+            max_leaves,
+            ..Default::default()
+        };
+        if !(ages.max_age > ages.min_age && ages.max_age <= 365.0) {
+            bail!("--max-age {max_age} must lie in ({}, 365] days", ages.min_age);
+        }
+        if ages.max_leaves < ages.min_leaves {
+            bail!("--max-leaves {max_leaves} must be at least {}", ages.min_leaves);
+        }
+        if !(0.0..=1.0).contains(&val_fraction) {
+            bail!("--val-fraction {val_fraction} must lie in [0, 1]");
+        }
+        dataset::run(&DatasetArgs {
+            out,
+            plants,
+            seed,
+            views: parse_views(&views)?,
+            size,
+            full_frame,
+            val_fraction,
+            presets: with_dead_remnants(parse_presets(preset.as_deref())?, dead_remnants)?,
+            ages,
+            zoom: sampling::ZoomRange::parse(&zoom).map_err(anyhow::Error::msg)?,
+            shard: parse_shard(&shard)?,
+            quality: quality(spp)?,
+            masks,
+            quiet,
+        })
+    }
+}
+
+impl SequenceCmd {
+    /// Checks what clap cannot (age, date, presets, climate), then runs.
+    fn run(self) -> anyhow::Result<()> {
+        let SequenceCmd {
             out,
             plants,
             days,
@@ -380,147 +422,129 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             dead_remnants,
             climate,
             quiet,
-        } => {
-            check_age(start_age).context("--start-age")?;
-            sequence::run(&SequenceArgs {
-                out,
-                plants,
-                days,
-                seed,
-                start: Date::parse(&start_date).context("--start-date")?,
-                start_age,
-                interval,
-                views: parse_views(&views)?,
-                frame_height,
-                presets: with_dead_remnants(parse_presets(preset.as_deref())?, dead_remnants)?,
-                quality: quality(spp)?,
-                labels,
-                climate: climate
-                    .as_deref()
-                    .map(ClimateSpec::parse)
-                    .transpose()
-                    .context("--climate")?,
-                quiet,
-            })
-        }
-        Command::Bench {
-            pairs,
-            size,
-            spp,
+        } = self;
+        check_age(start_age).context("--start-age")?;
+        sequence::run(&SequenceArgs {
+            out,
+            plants,
+            days,
             seed,
-        } => {
-            if pairs == 0 {
-                bail!("--pairs must be at least 1");
-            }
-            bench::run(pairs, size, quality(spp)?, seed)
-        }
-        Command::Render {
-            preset,
-            seed,
-            age,
+            start: Date::parse(&start_date).context("--start-date")?,
+            start_age,
+            interval,
+            views: parse_views(&views)?,
+            frame_height,
+            presets: with_dead_remnants(parse_presets(preset.as_deref())?, dead_remnants)?,
+            quality: quality(spp)?,
+            labels,
+            climate: climate
+                .as_deref()
+                .map(ClimateSpec::parse)
+                .transpose()
+                .context("--climate")?,
+            quiet,
+        })
+    }
+}
+
+impl RenderCmd {
+    /// Renders the frame with its label and mask, and prints what it holds.
+    fn run(self) -> anyhow::Result<()> {
+        let RenderCmd {
+            plant: PlantArgs { preset, seed, age },
             view,
             frame_height,
             spp,
             out,
             dead_remnants,
-        } => {
-            check_age(age)?;
-            let mut preset = Preset::load(&preset)?;
-            if dead_remnants {
-                preset.growth.dead_remnant_chance = 1.0;
-            }
-            let view = View::parse(&view).context("--view")?;
-            let traits = PlantTraits::sample(&preset, seed);
-            let plant = Plant::build(&traits, age);
-            let look = Look::facility();
-            let panicle = preset
-                .panicle
-                .as_ref()
-                .map(|x| x.reflectance)
-                .unwrap_or([0.3, 0.3, 0.1]);
-            let stage = Stage::new(&plant, &preset.colour, panicle, &look);
-            let scene = Scene::new(&stage, &look, view);
-            let camera = render::camera_for(view, &look, frame_height);
-            let window = Window {
-                x0: 0,
-                y0: 0,
-                width: camera.width,
-                height: camera.height,
-            };
-            let img = render::render(
-                &scene,
-                &camera,
-                &look,
-                window,
-                quality(spp)?,
-                rng::derive(seed, "render", 0),
-            )?;
-            png_io::write_atomic(&out, &png_io::rgb_png(&img.rgb)?)?;
-            png_io::write_atomic(&out.with_extension("label.png"), &png_io::label_png(&img.label)?)?;
-            png_io::write_atomic(
-                &out.with_extension("mask.png"),
-                &png_io::rgb_png(&img.label.mask())?,
-            )?;
+        } = self;
+        check_age(age)?;
+        let mut preset = Preset::load(&preset)?;
+        if dead_remnants {
+            preset.growth.dead_remnant_chance = 1.0;
+        }
+        let view = View::parse(&view).context("--view")?;
+        let traits = PlantTraits::sample(&preset, seed);
+        let plant = Plant::build(&traits, age);
+        let look = Look::facility();
+        let stage = Stage::for_preset(&plant, &preset, &look);
+        let scene = Scene::new(&stage, &look, view);
+        let camera = render::camera_for(view, &look, frame_height);
+        let img = render::render(
+            &scene,
+            &camera,
+            &look,
+            Window::frame(&camera),
+            quality(spp)?,
+            rng::derive(seed, "render", 0),
+        )?;
+        png_io::write_atomic(&out, &png_io::rgb_png(&img.rgb)?)?;
+        png_io::write_atomic(&out.with_extension("label.png"), &png_io::label_png(&img.label)?)?;
+        png_io::write_atomic(
+            &out.with_extension("mask.png"),
+            &png_io::rgb_png(&img.label.mask())?,
+        )?;
+        println!(
+            "{}: preset {} age {age} d, {} living leaves ({} emerged), {} visible, {} triangles",
+            out.display(),
+            preset.name,
+            plant.leaf_count(),
+            plant.state.emerged,
+            img.label.visible_leaf_count(),
+            stage.triangles()
+        );
+        Ok(())
+    }
+}
+
+/// The `mesh` command: one plant's mesh as OBJ.
+fn mesh(plant: &PlantArgs, out: &Path) -> anyhow::Result<()> {
+    let PlantArgs { preset, seed, age } = plant;
+    check_age(*age)?;
+    let preset = Preset::load(preset)?;
+    let plant = Plant::build(&PlantTraits::sample(&preset, *seed), *age);
+    let mesh = render::scene_mesh(&plant);
+    let mut buf = Vec::new();
+    mesh.write_obj(&mut buf)?;
+    png_io::write_atomic(out, &buf)?;
+    println!(
+        "{}: {} leaves, {} triangles, {} groups",
+        out.display(),
+        plant.leaf_count(),
+        mesh.tris.len(),
+        mesh.groups.len()
+    );
+    Ok(())
+}
+
+/// The `coco` command.
+fn coco(dir: &Path) -> anyhow::Result<()> {
+    let summary = crate::coco::export(dir)?;
+    for (split, n) in &summary.images {
+        println!(
+            "{split}: {n} images -> {}",
+            dir.join("coco").join(format!("panoptic_{split}.json")).display()
+        );
+    }
+    println!("{} segments", summary.segments);
+    Ok(())
+}
+
+/// The `presets` command.
+fn presets(files: Vec<PathBuf>) -> anyhow::Result<()> {
+    if files.is_empty() {
+        for p in Preset::builtins()? {
             println!(
-                "{}: preset {} age {age} d, {} living leaves ({} emerged), {} visible, {} triangles",
-                out.display(),
-                preset.name,
-                plant.leaf_count(),
-                plant.state.emerged,
-                img.label.visible_leaf_count(),
-                stage.triangles()
+                "{:10} {:8} weight {:.1}  {}",
+                p.name, p.species, p.weight, p.description
             );
-            Ok(())
-        }
-        Command::Mesh {
-            preset,
-            seed,
-            age,
-            out,
-        } => {
-            check_age(age)?;
-            let preset = Preset::load(&preset)?;
-            let plant = Plant::build(&PlantTraits::sample(&preset, seed), age);
-            let mesh = render::scene_mesh(&plant);
-            let mut buf = Vec::new();
-            mesh.write_obj(&mut buf)?;
-            png_io::write_atomic(&out, &buf)?;
-            println!(
-                "{}: {} leaves, {} triangles, {} groups",
-                out.display(),
-                plant.leaf_count(),
-                mesh.tris.len(),
-                mesh.groups.len()
-            );
-            Ok(())
-        }
-        Command::Coco { dir } => {
-            let summary = crate::coco::export(&dir)?;
-            for (split, n) in &summary.images {
-                println!(
-                    "{split}: {n} images -> {}",
-                    dir.join("coco").join(format!("panoptic_{split}.json")).display()
-                );
-            }
-            println!("{} segments", summary.segments);
-            Ok(())
-        }
-        Command::Presets { files } => {
-            if files.is_empty() {
-                for p in Preset::builtins()? {
-                    println!(
-                        "{:10} {:8} weight {:.1}  {}",
-                        p.name, p.species, p.weight, p.description
-                    );
-                }
-            }
-            for f in files {
-                let p = Preset::load(&f.display().to_string())?;
-                println!("{}: ok ({} {})", f.display(), p.name, p.species);
-            }
-            Ok(())
         }
     }
+    for f in files {
+        let p = Preset::load(&f.display().to_string())?;
+        println!("{}: ok ({} {})", f.display(), p.name, p.species);
+    }
+    Ok(())
 }
 
 /// Entry point: parse, run, print errors with their causes.

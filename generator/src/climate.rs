@@ -18,8 +18,8 @@
 //! daemon uses too (written again here, so the truth does not lean on the
 //! code it checks).
 
+use crate::date::Date;
 use crate::rng::{self, Draw};
-use crate::sequence::Date;
 use anyhow::{bail, Context};
 use std::fmt::Write as _;
 

@@ -251,13 +251,7 @@ pub fn plan_plant(
 fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) -> anyhow::Result<()> {
     let plan = plan_plant(&args.presets, &args.ages, &args.zoom, args.seed, p);
     let plant = Plant::build(&plan.traits, plan.age);
-    let panicle = plan
-        .preset
-        .panicle
-        .as_ref()
-        .map(|x| x.reflectance)
-        .unwrap_or([0.3, 0.3, 0.1]);
-    let stage = Stage::new(&plant, &plan.preset.colour, panicle, &plan.look);
+    let stage = Stage::for_preset(&plant, &plan.preset, &plan.look);
     let split = if sampling::is_val(args.seed, p, args.val_fraction) {
         "val"
     } else {
@@ -272,12 +266,7 @@ fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) 
             phyllo_contract::Contract::embedded().input.frame_height,
         );
         let window = match **view {
-            View::Side(_) if args.full_frame => render::Window {
-                x0: 0,
-                y0: 0,
-                width: camera.width,
-                height: camera.height,
-            },
+            View::Side(_) if args.full_frame => render::Window::frame(&camera),
             _ => sampling::crop_window(&scene, &camera, **view, args.size),
         };
         let seed = rng::derive(render_seed, &view.name(), 0);

@@ -13,6 +13,7 @@ pub mod cli;
 pub mod climate;
 pub mod coco;
 pub mod dataset;
+pub mod date;
 pub mod label;
 pub mod mesh;
 pub mod plant;

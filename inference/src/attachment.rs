@@ -17,7 +17,7 @@ use imageproc::morphology;
 use imageproc::region_labelling::{connected_components, Connectivity};
 use phyllo_contract::Contract;
 
-use crate::postprocess::Panoptic;
+use crate::panoptic::Panoptic;
 use crate::region::{is_plant_pixel, median_colour};
 
 /// A body counts as plant when it holds at least this share of the plant
@@ -144,7 +144,7 @@ fn label_components(mask: &GrayImage) -> (Vec<u32>, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::postprocess::Segment;
+    use crate::panoptic::Segment;
 
     /// A 40x20 output grid (stride 2) with three leaves: two touching the
     /// green stem, one grey "leaf" on the chamber frame far away.

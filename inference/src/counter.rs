@@ -12,8 +12,9 @@ use crate::decode::{decode_rgb, DecodeLimits};
 use crate::error::InferenceError;
 use crate::flip;
 use crate::model::{Model, ModelInfo, ModelOptions};
+use crate::panoptic::Panoptic;
 use crate::pieces::split_pieces;
-use crate::postprocess::{panoptic, Panoptic, PostprocessParams};
+use crate::postprocess::{panoptic, PostprocessParams};
 use crate::region::RegionMode;
 use crate::result::{CountResult, Instance, StageTimings};
 use crate::runtime;
@@ -362,8 +363,8 @@ fn ms(t: Instant) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::postprocess::Segment;
-    use crate::tips::{CountRule, TipPeak};
+    use crate::panoptic::{Segment, TipPeak};
+    use crate::tips::CountRule;
     use image::RgbImage;
     use phyllo_contract::LEAF;
 

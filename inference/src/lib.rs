@@ -6,6 +6,9 @@
 //! decode ─► region ─► tiling ─► model (ONNX Runtime) ─► stitch ─► postprocess ─► attachment ─► pieces ─► CountResult
 //! ```
 //!
+//! From postprocess on, the stages hand one [`panoptic::Panoptic`] along; it
+//! has a module of its own so that no stage depends on another for it.
+//!
 //! With a model that has a leaf-tip output, [`tips`] counts leaves by their
 //! tips as well as by their centres.
 //!
@@ -21,6 +24,7 @@ pub mod error;
 pub mod flip;
 pub mod model;
 pub mod overlay;
+pub mod panoptic;
 pub mod pieces;
 pub mod postprocess;
 pub mod region;

@@ -19,7 +19,7 @@ use std::collections::VecDeque;
 
 use phyllo_contract::LEAF;
 
-use crate::postprocess::{Panoptic, Segment};
+use crate::panoptic::{Panoptic, Segment};
 
 /// Default smallest piece that becomes a leaf, in output pixels: about a
 /// young leaf's blade at the contract scale. Chosen on the synthetic

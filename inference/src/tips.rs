@@ -28,23 +28,12 @@ use std::str::FromStr;
 use phyllo_contract::LEAF;
 use serde::{Deserialize, Serialize};
 
-use crate::postprocess::Panoptic;
+use crate::panoptic::Panoptic;
 
 /// Default [`crate::postprocess::PostprocessParams::tip_reach`]: 2 output
 /// pixels, a tip's Gaussian target (`tip_sigma` 1.5) plus rounding, so a tip
 /// the model puts just past the end of its leaf still reaches it.
 pub const DEFAULT_TIP_REACH: u32 = 2;
-
-/// One leaf tip: a peak of the tip heatmap, in output pixels.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct TipPeak {
-    /// Column, in output pixels.
-    pub x: u32,
-    /// Row, in output pixels.
-    pub y: u32,
-    /// Heatmap value at the peak.
-    pub score: f32,
-}
 
 /// How leaves are counted. See the [module documentation](self) for why.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -172,7 +161,7 @@ impl Panoptic {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::postprocess::Segment;
+    use crate::panoptic::{Segment, TipPeak};
     use phyllo_contract::{PANICLE, STEM};
 
     const W: usize = 20;

@@ -9,7 +9,7 @@
 
 use phyllo_contract::Contract;
 
-use crate::postprocess::Panoptic;
+use crate::panoptic::Panoptic;
 
 /// Margin added above and below the instances' rows, in model pixels (the
 /// same as the colour box's, so the rule reads like a box height).
@@ -87,7 +87,7 @@ mod tests {
 
     #[test]
     fn height_spans_every_instance_plus_margins() {
-        use crate::postprocess::Segment;
+        use crate::panoptic::Segment;
         let seg = |y0, y1| Segment {
             id: 1,
             class: 1,

@@ -5,7 +5,7 @@
 //! [`PlantTraits::at`] then gives its state on any day, so the same plant can
 //! be rendered growing across a sequence of imaging days.
 
-use super::preset::Preset;
+use super::preset::{LeafShape, Preset};
 use crate::rng::{self, Draw};
 use std::f32::consts::PI;
 
@@ -135,6 +135,48 @@ pub struct PlantState {
     pub panicle: Option<(f32, f32)>,
 }
 
+/// Bell-shaped length profile over `rank` (0 first leaf, 1 flag leaf),
+/// relative to the longest leaf: short first leaves, the longest around
+/// `longest`, a shorter flag leaf.
+fn length_profile(rank: f32, longest: f32, first_frac: f32, last_frac: f32) -> f32 {
+    if rank <= longest {
+        first_frac + (1.0 - first_frac) * (0.5 - 0.5 * (PI * rank / longest.max(1e-3)).cos())
+    } else {
+        let x = (rank - longest) / (1.0 - longest).max(1e-3);
+        1.0 - (1.0 - last_frac) * x * x
+    }
+}
+
+/// Lateral offsets of a leaf skeleton's control points, growing toward the
+/// tip; the first stays on the collar.
+fn draw_wander(r: &mut impl Draw, amp: f32) -> [f32; 7] {
+    let mut wander = [0.0f32; 7];
+    for (k, w) in wander.iter_mut().enumerate() {
+        *w = if k == 0 {
+            0.0
+        } else {
+            r.normal(0.0, amp) * (k as f32 / 6.0)
+        };
+    }
+    wander
+}
+
+/// Where leaf `i` buckles and by how much (0 for an even arc); the preset's
+/// chance is scaled by `rel_length`, the leaf's length over the longest's.
+/// Drawn from a stream of its own, so adding buckles left every other trait
+/// of an existing seed as it was.
+fn draw_kink(l: &LeafShape, seed: u64, i: usize, rel_length: f32) -> (f32, f32) {
+    let mut k = rng::stream(seed, "leaf-kink", i as u64);
+    let buckles = k.chance(l.kink_chance * rel_length.min(1.0));
+    let kink_position = k.range(l.kink_position);
+    let kink_angle = if buckles {
+        k.range(l.kink_angle_deg).to_radians()
+    } else {
+        0.0
+    };
+    (kink_position, kink_angle)
+}
+
 fn smoothstep(x: f32) -> f32 {
     let x = x.clamp(0.0, 1.0);
     x * x * (3.0 - 2.0 * x)
@@ -167,14 +209,7 @@ impl PlantTraits {
         let mut leaves = Vec::with_capacity(n);
         for i in 0..n {
             let rank = if n > 1 { i as f32 / (n - 1) as f32 } else { 0.5 };
-            // Bell-shaped length profile over rank: short first leaves, the
-            // longest around `longest`, shorter flag leaf.
-            let rel = if rank <= longest {
-                first_frac + (1.0 - first_frac) * (0.5 - 0.5 * (PI * rank / longest.max(1e-3)).cos())
-            } else {
-                let x = (rank - longest) / (1.0 - longest).max(1e-3);
-                1.0 - (1.0 - last_frac) * x * x
-            };
+            let rel = length_profile(rank, longest, first_frac, last_frac);
             let length = max_len * rel * r.normal(1.0, 0.05).clamp(0.85, 1.15);
             let width = length
                 * width_ratio
@@ -183,30 +218,14 @@ impl PlantTraits {
             let exp_days = expansion * r.normal(1.0, 0.08).clamp(0.8, 1.2);
             let life = lifespan * r.normal(1.0, 0.1).clamp(0.75, 1.25) * (1.0 + 0.6 * rank);
             let sen = r.range(g.senescence_days);
-            let mut wander = [0.0f32; 7];
             let wander_amp = r.range(l.wander);
-            for (k, w) in wander.iter_mut().enumerate() {
-                *w = if k == 0 {
-                    0.0
-                } else {
-                    r.normal(0.0, wander_amp) * (k as f32 / 6.0)
-                };
-            }
+            let wander = draw_wander(&mut r, wander_amp);
             let internode_length = if (i as u32) < s.elongation_start_rank {
                 0.004 + 0.004 * r.random_unit()
             } else {
                 internode * r.normal(1.0, 0.12).clamp(0.6, 1.4)
             };
-            // A stream of its own, so adding buckles left every other trait
-            // of an existing seed as it was.
-            let mut k = rng::stream(seed, "leaf-kink", i as u64);
-            let buckles = k.chance(l.kink_chance * (length / max_len).min(1.0));
-            let kink_position = k.range(l.kink_position);
-            let kink_angle = if buckles {
-                k.range(l.kink_angle_deg).to_radians()
-            } else {
-                0.0
-            };
+            let (kink_position, kink_angle) = draw_kink(l, seed, i, length / max_len);
             leaves.push(LeafTraits {
                 emergence_day: day,
                 expansion_days: exp_days,

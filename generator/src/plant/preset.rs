@@ -262,14 +262,10 @@ impl Preset {
         Ok(preset)
     }
 
+    /// Checks every value against its allowed range, reporting the first
+    /// offender by its dotted field name.
     fn validate(&self, origin: &str) -> Result<(), PresetError> {
-        let bad = |field: &str, problem: String| {
-            Err(PresetError::Invalid {
-                origin: origin.into(),
-                field: field.into(),
-                problem,
-            })
-        };
+        let bad = |field: &str, problem: String| invalid(origin, field, problem);
         if self.name.is_empty() || !self.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-') {
             return bad(
                 "name",
@@ -291,17 +287,28 @@ impl Preset {
                 format!("must be a finite number >= 0, got {}", self.weight),
             );
         }
-        let g = &self.growth;
-        let [lo, hi] = g.final_leaf_count;
+        let [lo, hi] = self.growth.final_leaf_count;
         if lo > hi || lo < 4 || hi > 30 {
             return bad(
                 "growth.final_leaf_count",
                 format!("must be an ordered pair within 4..=30, got [{lo}, {hi}]"),
             );
         }
+        self.validate_ranges(origin)?;
+        self.colour.validate(origin)?;
+        match &self.panicle {
+            Some(p) => p.validate(origin),
+            None => Ok(()),
+        }
+    }
+
+    /// The drawn parameters: each a finite, ordered pair within its bounds
+    /// (a single chance or spread stands as a pair of itself).
+    fn validate_ranges(&self, origin: &str) -> Result<(), PresetError> {
+        let g = &self.growth;
         let l = &self.leaf;
         let s = &self.stem;
-        let ranges: [(&str, Range, f32, f32); 31] = [
+        let ranges: [(&str, Range, f32, f32); 30] = [
             ("growth.first_emergence_day", g.first_emergence_day, 0.0, 30.0),
             ("growth.phyllochron_days", g.phyllochron_days, 0.5, 15.0),
             ("growth.expansion_days", g.expansion_days, 1.0, 30.0),
@@ -340,7 +347,6 @@ impl Preset {
             ("stem.internode_length", s.internode_length, 0.0, 0.5),
             ("stem.elongation_days", s.elongation_days, 0.5, 60.0),
             ("stem.sheath_fraction", s.sheath_fraction, 0.0, 1.0),
-            ("colour.leaf_reflectance", [0.0, 0.0], 0.0, 0.0),
             (
                 "colour.jitter",
                 [self.colour.jitter, self.colour.jitter],
@@ -355,62 +361,95 @@ impl Preset {
             ),
         ];
         for (field, [lo, hi], min, max) in ranges {
-            if field == "colour.leaf_reflectance" {
-                continue;
-            }
             if !lo.is_finite() || !hi.is_finite() {
-                return bad(field, format!("must be finite, got [{lo}, {hi}]"));
+                return invalid(origin, field, format!("must be finite, got [{lo}, {hi}]"));
             }
             if lo > hi {
-                return bad(field, format!("lower bound {lo} is above upper bound {hi}"));
-            }
-            if lo < min || hi > max {
-                return bad(field, format!("must lie within [{min}, {max}], got [{lo}, {hi}]"));
-            }
-        }
-        let c = &self.colour;
-        let colours = [
-            ("colour.leaf_reflectance", c.leaf_reflectance),
-            ("colour.leaf_transmittance", c.leaf_transmittance),
-            ("colour.senescent_reflectance", c.senescent_reflectance),
-            ("colour.dry_reflectance", c.dry_reflectance),
-            ("colour.stem_reflectance", c.stem_reflectance),
-        ];
-        for (field, rgb) in colours {
-            if rgb.iter().any(|v| !(0.0..=1.0).contains(v)) {
-                return bad(field, format!("components must lie within [0, 1], got {rgb:?}"));
-            }
-        }
-        for i in 0..3 {
-            if c.leaf_reflectance[i] + c.leaf_transmittance[i] > 1.0 {
-                return bad(
-                    "colour.leaf_transmittance",
-                    "reflectance + transmittance must not exceed 1 in any channel (energy)".into(),
+                return invalid(
+                    origin,
+                    field,
+                    format!("lower bound {lo} is above upper bound {hi}"),
                 );
             }
-        }
-        if let Some(p) = &self.panicle {
-            for (field, [lo, hi], min, max) in [
-                ("panicle.emergence_day", p.emergence_day, 1.0, 400.0),
-                ("panicle.length", p.length, 0.01, 1.0),
-                ("panicle.radius", p.radius, 0.002, 0.3),
-            ] {
-                if !(lo <= hi && lo >= min && hi <= max) {
-                    return bad(
-                        field,
-                        format!("must be an ordered pair within [{min}, {max}], got [{lo}, {hi}]"),
-                    );
-                }
-            }
-            if p.reflectance.iter().any(|v| !(0.0..=1.0).contains(v)) {
-                return bad(
-                    "panicle.reflectance",
-                    format!("components must lie within [0, 1], got {:?}", p.reflectance),
+            if lo < min || hi > max {
+                return invalid(
+                    origin,
+                    field,
+                    format!("must lie within [{min}, {max}], got [{lo}, {hi}]"),
                 );
             }
         }
         Ok(())
     }
+}
+
+impl Colour {
+    /// Every component a fraction, and no leaf that reflects and transmits
+    /// more light than it receives.
+    fn validate(&self, origin: &str) -> Result<(), PresetError> {
+        let colours = [
+            ("colour.leaf_reflectance", self.leaf_reflectance),
+            ("colour.leaf_transmittance", self.leaf_transmittance),
+            ("colour.senescent_reflectance", self.senescent_reflectance),
+            ("colour.dry_reflectance", self.dry_reflectance),
+            ("colour.stem_reflectance", self.stem_reflectance),
+        ];
+        for (field, rgb) in colours {
+            if rgb.iter().any(|v| !(0.0..=1.0).contains(v)) {
+                return invalid(
+                    origin,
+                    field,
+                    format!("components must lie within [0, 1], got {rgb:?}"),
+                );
+            }
+        }
+        for i in 0..3 {
+            if self.leaf_reflectance[i] + self.leaf_transmittance[i] > 1.0 {
+                return invalid(
+                    origin,
+                    "colour.leaf_transmittance",
+                    "reflectance + transmittance must not exceed 1 in any channel (energy)".into(),
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Panicle {
+    /// Ordered ranges within bounds, and a fraction for every colour component.
+    fn validate(&self, origin: &str) -> Result<(), PresetError> {
+        for (field, [lo, hi], min, max) in [
+            ("panicle.emergence_day", self.emergence_day, 1.0, 400.0),
+            ("panicle.length", self.length, 0.01, 1.0),
+            ("panicle.radius", self.radius, 0.002, 0.3),
+        ] {
+            if !(lo <= hi && lo >= min && hi <= max) {
+                return invalid(
+                    origin,
+                    field,
+                    format!("must be an ordered pair within [{min}, {max}], got [{lo}, {hi}]"),
+                );
+            }
+        }
+        if self.reflectance.iter().any(|v| !(0.0..=1.0).contains(v)) {
+            return invalid(
+                origin,
+                "panicle.reflectance",
+                format!("components must lie within [0, 1], got {:?}", self.reflectance),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The error for `field` of the preset from `origin`.
+fn invalid(origin: &str, field: &str, problem: String) -> Result<(), PresetError> {
+    Err(PresetError::Invalid {
+        origin: origin.into(),
+        field: field.into(),
+        problem,
+    })
 }
 
 #[cfg(test)]

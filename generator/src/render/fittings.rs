@@ -16,7 +16,7 @@
 //! shaded where a ray misses the plant, so a fitting in front of the plant
 //! would wrongly be hidden by it.
 
-use super::chamber::{Finish, Rect, BACK_Z, CEILING_Y, FLOOR_Y, FRONT_Z, HALF_WIDTH};
+use super::walls::{Finish, Rect, BACK_Z, CEILING_Y, FLOOR_Y, FRONT_Z, HALF_WIDTH};
 use crate::rng::{self, Draw};
 
 /// Nearest z a side-wall post may have: posts closer to the camera are out

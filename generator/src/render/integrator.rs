@@ -77,8 +77,8 @@ pub fn trace(scene: &Scene, origin: Vec3, dir: Vec3, rng: &mut PixelRng, max_dep
                 continue;
             }
             let le = match light.finish {
-                super::chamber::Finish::Emitter(le) => Vec3::from(le),
-                super::chamber::Finish::Matte(_) => Vec3::ZERO,
+                super::walls::Finish::Emitter(le) => Vec3::from(le),
+                super::walls::Finish::Matte(_) => Vec3::ZERO,
             };
             let g = n.dot(wi).abs() * cos_l / dist2;
             direct += f * le * (g * light.area() / p_sel);

@@ -10,9 +10,11 @@ pub mod fittings;
 pub mod integrator;
 pub mod look;
 pub mod materials;
+pub mod walls;
 
 use crate::label::LabelImage;
 use crate::mesh::{Mesh, TriInfo};
+use crate::plant::preset::Preset;
 use crate::plant::Plant;
 use crate::rng::PixelRng;
 use accel::{Accel, Hit};
@@ -89,6 +91,18 @@ pub struct Window {
     pub height: u32,
 }
 
+impl Window {
+    /// The whole frame of `camera`, as the facility's files hold it.
+    pub fn frame(camera: &Camera) -> Window {
+        Window {
+            x0: 0,
+            y0: 0,
+            width: camera.width,
+            height: camera.height,
+        }
+    }
+}
+
 /// The plant and props with their materials: built once, rendered from many views.
 pub struct Stage {
     accel: Accel,
@@ -112,6 +126,17 @@ impl Stage {
             materials: Materials::new(colour, plant.traits.tint, panicle_rgb, look.pot_albedo),
             bounds,
         }
+    }
+
+    /// [`Stage::new`] with the colours of `preset`; a preset without a
+    /// panicle grows none, so the stand-in colour it gets is never seen.
+    pub fn for_preset(plant: &Plant, preset: &Preset, look: &Look) -> Self {
+        let panicle = preset
+            .panicle
+            .as_ref()
+            .map(|x| x.reflectance)
+            .unwrap_or([0.3, 0.3, 0.1]);
+        Stage::new(plant, &preset.colour, panicle, look)
     }
 
     /// Triangles in the BVH.
