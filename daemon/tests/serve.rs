@@ -10,7 +10,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use phyllo::config::Config;
-use phyllo::counting::{CountError, LeafCounter};
+use phyllo::pipeline::counting::{CountError, LeafCounter};
 use phyllo::store::{CountRecord, Store};
 use tokio::sync::watch;
 
@@ -80,7 +80,7 @@ fn start(cfg: Config) -> Running {
             .enable_all()
             .build()
             .unwrap();
-        rt.block_on(phyllo::service::run(cfg, Arc::new(TextCounter), rx))
+        rt.block_on(phyllo::pipeline::service::run(cfg, Arc::new(TextCounter), rx))
     });
     Running { stop, handle }
 }
@@ -309,7 +309,7 @@ fn bounded_queue_and_sigterm_hand_back() {
                 .enable_all()
                 .build()
                 .unwrap();
-            rt.block_on(phyllo::service::run(
+            rt.block_on(phyllo::pipeline::service::run(
                 cfg,
                 Arc::new(SlowCounter(Duration::from_millis(250))),
                 rx,

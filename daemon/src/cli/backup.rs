@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use super::ConfigArg;
-use crate::sinks::backup;
+use crate::ops::backup;
 use crate::store::Store;
 
 /// Arguments of `phyllo backup`.

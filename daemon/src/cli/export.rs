@@ -21,7 +21,7 @@ pub struct Args {
     #[arg(long, value_name = "FILE.csv")]
     out: Option<PathBuf>,
     /// Only rows at or after this date (YYYY-MM-DD) or time (YYYY-MM-DDTHH:MM:SS).
-    #[arg(long, value_name = "DATE", value_parser = super::import::parse_since)]
+    #[arg(long, value_name = "DATE", value_parser = crate::ops::import_csv::parse_since)]
     since: Option<String>,
     /// What to export (with `--out` alone: timeline).
     #[arg(long, value_parser = KINDS)]

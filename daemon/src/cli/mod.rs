@@ -9,7 +9,6 @@ pub mod export;
 pub mod forecast;
 pub mod groups;
 pub mod import;
-pub mod import_dir;
 pub mod recount;
 pub mod restore;
 pub mod review;

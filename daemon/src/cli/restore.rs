@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use super::ConfigArg;
-use crate::import_journal;
-use crate::sinks::backup;
+use crate::ops::backup;
+use crate::ops::import_journal;
 use crate::store::{RestoreLock, Store};
 
 /// Arguments of `phyllo restore`.
@@ -53,7 +53,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             println!("left out: {} (imported after the snapshot)", entry.file.display());
             continue;
         }
-        match super::import::take(&mut store, entry) {
+        match crate::ops::import_csv::take(&mut store, entry) {
             Ok(done) => println!(
                 "imported: {} again ({done}, imported after the snapshot)",
                 entry.file.display()

@@ -18,7 +18,7 @@ pub struct Args {
     #[arg(long, default_value_t = NIGHTLY)]
     top: usize,
     /// Only sessions from this date (YYYY-MM-DD) or time on.
-    #[arg(long, value_name = "DATE", value_parser = super::import::parse_since)]
+    #[arg(long, value_name = "DATE", value_parser = crate::ops::import_csv::parse_since)]
     since: Option<String>,
     /// Only this plant's sessions.
     #[arg(long, value_name = "NAME")]
@@ -98,7 +98,8 @@ fn draw_overlays(
     items: &[review_sheet::Item],
     dir: &std::path::Path,
 ) -> anyhow::Result<(usize, usize)> {
-    let counter = phyllo_inference::Counter::new(crate::counting::counter_config(&config.inference))?;
+    let counter =
+        phyllo_inference::Counter::new(crate::pipeline::counting::counter_config(&config.inference))?;
     let (mut drawn, mut missing) = (0, 0);
     for (i, it) in items.iter().enumerate() {
         let out_dir = dir.join(format!("{:02}-{}", i + 1, sanitize(&it.doubt.plant)));

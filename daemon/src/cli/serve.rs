@@ -7,7 +7,7 @@ use tokio::sync::watch;
 
 use super::ConfigArg;
 use crate::config::Config;
-use crate::counting::LeafCounter;
+use crate::pipeline::counting::LeafCounter;
 
 /// Arguments of `phyllo serve`.
 #[derive(Debug, clap::Args)]
@@ -18,7 +18,7 @@ pub struct Args {
 
 /// Builds the model's counter from the config.
 pub fn make_counter(cfg: &Config) -> anyhow::Result<Arc<dyn LeafCounter>> {
-    crate::counting::onnx_counter(&cfg.inference)
+    crate::pipeline::counting::onnx_counter(&cfg.inference)
 }
 
 /// Runs the service until SIGTERM or SIGINT.
@@ -40,7 +40,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             tracing::info!("signal received, shutting down");
             let _ = tx.send(true);
         });
-        crate::service::run(config, counter, rx).await
+        crate::pipeline::service::run(config, counter, rx).await
     })
 }
 

@@ -194,7 +194,7 @@ fn export_age_hours(config: &crate::config::Config) -> Option<i64> {
 
 /// Hours since the newest snapshot, `None` when there is none.
 fn newest_snapshot_age(config: &crate::config::Config) -> anyhow::Result<Option<i64>> {
-    Ok(crate::sinks::backup::list(&config.backup_dir())?
+    Ok(crate::ops::backup::list(&config.backup_dir())?
         .pop()
         .map(|s| s.age_hours()))
 }
@@ -229,7 +229,7 @@ fn show(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     let backup_dir = config.backup_dir();
-    let snapshots = crate::sinks::backup::list(&backup_dir);
+    let snapshots = crate::ops::backup::list(&backup_dir);
     let newest = snapshots.as_ref().ok().and_then(|s| s.last().cloned());
     let backup_age_hours = newest.as_ref().map(|s| s.age_hours());
     let state_dir = config.state_dir();

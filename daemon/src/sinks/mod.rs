@@ -2,13 +2,11 @@
 //! renamed into place whole ([`atomic`]).
 //!
 //! [`export`] writes CSV atomically, [`plot`] draws a plant's timeline,
-//! [`tail`] follows the feed from another process, [`backup`] keeps checked
-//! snapshots of the database itself, [`group_report`] writes the per-group
+//! [`tail`] follows the feed from another process, [`group_report`] writes the per-group
 //! summaries, [`review_sheet`] the days to check as a sheet to fill in and
 //! import, and [`index_html`] the page that links the nightly export.
 
 pub mod atomic;
-pub mod backup;
 pub mod export;
 pub mod group_report;
 pub mod index_html;

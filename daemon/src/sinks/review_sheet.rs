@@ -115,7 +115,7 @@ mod tests {
                     rel: rel.clone(),
                     size: 1,
                     mtime: None,
-                    sha256: crate::worker::sha256_hex(rel.as_bytes()),
+                    sha256: crate::pipeline::worker::sha256_hex(rel.as_bytes()),
                 };
                 let name = ParsedName {
                     plant: "P1".into(),
@@ -145,13 +145,13 @@ mod tests {
         );
         let sheet = dir.path().join("review.csv");
         assert_eq!(write(&sheet, &got).unwrap(), 1);
-        let read = crate::cli::import::read_rows(&sheet).unwrap();
+        let read = crate::ops::import_csv::read_rows(&sheet).unwrap();
         assert_eq!((read.rows.len(), read.skipped), (0, 1), "nothing filled in yet");
         let filled = std::fs::read_to_string(&sheet)
             .unwrap()
             .replacen(",human,,", ",human,7,", 1);
         std::fs::write(&sheet, filled).unwrap();
-        let read = crate::cli::import::read_rows(&sheet).unwrap();
+        let read = crate::ops::import_csv::read_rows(&sheet).unwrap();
         assert_eq!(read.skipped, 0);
         assert_eq!(read.rows[0].0, "P1");
         assert_eq!((read.rows[0].2.is_person(), read.rows[0].3), (true, 7));

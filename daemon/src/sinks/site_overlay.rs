@@ -81,7 +81,8 @@ pub fn draw_newest(timelines: &[PlantTimeline], drop_dir: &Path, dir: &Path) -> 
         let Some(site) = t.sites.iter().max_by_key(|s| s.leaf) else {
             continue;
         };
-        let digest = crate::worker::sha256_hex(format!("{}|{:?}", site.image, site.bbox).as_bytes());
+        let digest =
+            crate::pipeline::worker::sha256_hex(format!("{}|{:?}", site.image, site.bbox).as_bytes());
         let name = format!(
             "{}-leaf-{:02}-{}.png",
             super::plot::file_stem(&t.plant),

@@ -39,7 +39,7 @@ impl Store {
     /// Ingests counts made elsewhere, in one transaction. Re-importing the
     /// same row (plant, time, view, source) replaces its count rather than
     /// adding a second one. `journal` names the file's entry in the import
-    /// journal ([`crate::import_journal`]), recorded with it. Returns (rows, plants).
+    /// journal ([`crate::ops::import_journal`]), recorded with it. Returns (rows, plants).
     pub fn import(
         &mut self,
         source: &str,

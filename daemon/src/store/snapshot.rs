@@ -1,7 +1,7 @@
 //! The SQL side of `phyllo backup`: the live database's size, its copy by
 //! `VACUUM INTO` (one read transaction, so the service keeps writing), and
 //! the check of a copy. File names, retention and restoring are the backup
-//! sink's ([`crate::sinks::backup`]).
+//! sink's ([`crate::ops::backup`]).
 
 use std::path::Path;
 

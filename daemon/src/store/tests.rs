@@ -7,7 +7,7 @@ use chrono::{Duration, NaiveDate};
 use super::*;
 use crate::config::TimelineConfig;
 use crate::domain::names::{ParsedName, View};
-use crate::worker::sha256_hex;
+use crate::pipeline::worker::sha256_hex;
 
 fn open(dir: &tempfile::TempDir) -> Store {
     Store::open(&db(dir), &TimelineConfig::default(), 3).unwrap()

@@ -18,14 +18,14 @@ use tokio::sync::{mpsc, watch};
 use tokio::time::MissedTickBehavior;
 
 use crate::config::Config;
-use crate::counting::LeafCounter;
 use crate::domain::names::NamePatterns;
-use crate::source::intake::{Intake, ScanRequest};
-use crate::source::watch::Watch;
-use crate::source::{scan, Candidate, Filter};
+use crate::pipeline::counting::LeafCounter;
+use crate::pipeline::source::intake::{Intake, ScanRequest};
+use crate::pipeline::source::watch::Watch;
+use crate::pipeline::source::{scan, Candidate, Filter};
+use crate::pipeline::systemd;
+use crate::pipeline::worker::{spawn_workers, Stats, WorkerCtx};
 use crate::store::{now_utc, DatabaseLock, Store};
-use crate::systemd;
-use crate::worker::{spawn_workers, Stats, WorkerCtx};
 
 /// How often the service writes its self-report for `phyllo status`.
 const STATUS_EVERY: Duration = Duration::from_secs(2);
@@ -234,9 +234,13 @@ fn spawn_scan(
         let files = scan::scan(&filter, &dir);
         let mut sent = 0;
         for path in &files {
-            let known = match (&store, filter.rel(path), crate::source::stat_or_link(path)) {
+            let known = match (
+                &store,
+                filter.rel(path),
+                crate::pipeline::source::stat_or_link(path),
+            ) {
                 (Ok(s), Some(rel), Ok(meta)) => s
-                    .is_known(&rel, meta.len(), &crate::worker::mtime_string(&meta))
+                    .is_known(&rel, meta.len(), &crate::pipeline::worker::mtime_string(&meta))
                     .unwrap_or(false),
                 _ => false,
             };

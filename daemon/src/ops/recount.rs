@@ -8,9 +8,9 @@
 
 use std::path::Path;
 
-use crate::counting::LeafCounter;
+use crate::pipeline::counting::LeafCounter;
+use crate::pipeline::worker::sha256_hex;
 use crate::store::{CountedImage, Store};
-use crate::worker::sha256_hex;
 
 /// What a recount did.
 #[derive(Debug, Default, Clone, PartialEq)]
@@ -94,8 +94,8 @@ pub fn recount(
 mod tests {
     use super::*;
     use crate::config::TimelineConfig;
-    use crate::counting::CountError;
     use crate::domain::names::{ParsedName, View};
+    use crate::pipeline::counting::CountError;
     use crate::store::{CountRecord, FileFacts, Outcome};
 
     /// Counts the bytes' length, plus `extra`: a stand-in for a new model.

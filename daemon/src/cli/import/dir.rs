@@ -1,7 +1,7 @@
 //! `phyllo import --dir [DIR]`: every CSV of a folder that is new or changed
 //! since it was last taken, for a climate computer that rewrites its log
 //! there every hour and for review sheets left beside it. phyllo-import.timer
-//! runs it; each file goes through [`super::import::import_file`], so it is
+//! runs it; each file goes through [`super::import_file`], so it is
 //! checked, journalled and stored exactly as one imported by hand.
 //!
 //! What was taken is told by the import journal, not the database: a file
@@ -22,7 +22,7 @@ use std::time::{Duration, SystemTime};
 use anyhow::{bail, Context};
 
 use crate::config::Config;
-use crate::import_journal;
+use crate::ops::import_journal;
 
 /// What became of one file of the folder.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -80,7 +80,7 @@ pub fn run(config: &Config, journal: &Path, dir: Option<PathBuf>) -> anyhow::Res
 /// Imports `file` unless it is unchanged, undone or still being written.
 pub fn take(config: &Config, journal: &Path, file: &Path, settle: Duration) -> Outcome {
     match decide(journal, file, settle) {
-        Ok(Decision::Import { superseded }) => match super::import::import_file(config, journal, file) {
+        Ok(Decision::Import { superseded }) => match super::import_file(config, journal, file) {
             Ok(()) => {
                 if let Some(old) = superseded {
                     // The new entry holds all of it; a failure here only leaves a copy more.

@@ -18,8 +18,8 @@ use tokio::sync::{mpsc, watch};
 
 use super::{Candidate, Filter};
 use crate::config::WatchConfig;
+use crate::pipeline::worker::{mtime_string, Job, Stats};
 use crate::store::Store;
-use crate::worker::{mtime_string, Job, Stats};
 
 #[derive(Debug)]
 struct Pending {

@@ -16,8 +16,8 @@ use sha2::{Digest, Sha256};
 use tokio::sync::mpsc;
 
 use crate::config::Config;
-use crate::counting::LeafCounter;
 use crate::domain::names::NamePatterns;
+use crate::pipeline::counting::LeafCounter;
 use crate::store::{FileFacts, Outcome, Precheck, Recorded, Store};
 
 /// One file to process.

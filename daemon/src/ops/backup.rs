@@ -15,7 +15,7 @@ use anyhow::{bail, Context};
 use chrono::NaiveDateTime;
 use rusqlite::Connection;
 
-use super::atomic::sync_dir;
+use crate::sinks::atomic::sync_dir;
 use crate::store::snapshot;
 pub use crate::store::snapshot::Contents;
 

@@ -1,0 +1,18 @@
+//! The service's pipeline, one stage per module, data flowing one way
+//! (sources → transforms → sinks, as in Vector; the service's shape follows
+//! tokio's mini-redis):
+//!
+//! ```text
+//! source::watch / source::scan ─► source::intake (stability, dedupe) ─► bounded queue
+//!   ─► worker (hash, names, counting off the async runtime) ─► store (one transaction per image)
+//! ```
+//!
+//! [`service`] wires the stages for `phyllo serve`; [`counting`] is the
+//! boundary with the model; [`systemd`] talks to the service manager.
+//! See `docs/ARCHITECTURE.md`.
+
+pub mod counting;
+pub mod service;
+pub mod source;
+pub mod systemd;
+pub mod worker;
