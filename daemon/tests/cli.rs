@@ -35,7 +35,7 @@ fn site_config(d: &Path, extra: &str) -> (String, String) {
     (cfg.to_str().unwrap().to_string(), text)
 }
 
-/// The DESIGN.md ground truth, five side views and a top view per day.
+/// The person-counted sequence of docs/ARCHITECTURE.md ("Facility facts"), five side views and a top view per day.
 fn write_obs(path: &Path) {
     let gt = [8, 8, 10, 10, 11, 11, 12, 13, 14, 12, 14];
     let mut s = String::from("plant,timestamp,view,leaf_count\n");

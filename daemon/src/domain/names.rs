@@ -1,6 +1,6 @@
 //! File names → plant id, time taken and view.
 //!
-//! The facility has used three layouts (DESIGN.md, "File naming"); each is a
+//! The facility has used three layouts (docs/ARCHITECTURE.md, "Facility facts"); each is a
 //! built-in preset. Sites add their own regular expressions in the config.
 //! Patterns are matched against the path *relative to the drop directory*
 //! (with `/` separators), so the snapshot layouts can take the plant and time

@@ -567,7 +567,8 @@ mod tests {
     use super::*;
     use chrono::NaiveDate;
 
-    /// Living leaves counted by a person on successive imaging days (DESIGN.md).
+    /// Living leaves counted by a person on successive imaging days
+    /// (docs/ARCHITECTURE.md, "Facility facts").
     const GROUND_TRUTH: [f64; 11] = [8., 8., 10., 10., 11., 11., 12., 13., 14., 12., 14.];
 
     fn day(i: i64) -> NaiveDateTime {
