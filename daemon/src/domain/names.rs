@@ -207,7 +207,16 @@ impl NamePatterns {
             if plant.chars().any(char::is_control) {
                 bail!("file {shown}: pattern '{name}' matched a plant id with control characters");
             }
-            let angle = get("angle").and_then(|a| a.parse::<u16>().ok());
+            let angle = match get("angle").filter(|a| !a.is_empty()) {
+                None => None,
+                Some(a) => match a.parse::<u16>() {
+                    Ok(deg) if deg < 360 => Some(deg),
+                    // Read as 0 it would merge into another view's counts unseen.
+                    _ => bail!(
+                        "file {shown}: pattern '{name}' matched angle '{a}', not an angle in degrees (0-359)"
+                    ),
+                },
+            };
             let view = match get("kind").map(|k| k.to_ascii_lowercase()) {
                 Some(k) if k == "tv" || k == "top" => View::Top(angle.unwrap_or(90)),
                 _ => View::Side(angle.unwrap_or(0)),
@@ -343,6 +352,22 @@ mod tests {
             .parse(Path::new("P1_2018-13-40_10-00-00_Vis_SV_0.png"))
             .unwrap_err();
         assert!(format!("{err:#}").contains("2018-13-40"), "{err:#}");
+    }
+
+    #[test]
+    fn an_angle_out_of_range_is_an_error() {
+        for angle in ["99999999999999999999", "360"] {
+            let file = format!("P1_2018-04-02_10-00-00_Vis_SV_{angle}.png");
+            let err = format!("{:#}", defaults().parse(Path::new(&file)).unwrap_err());
+            assert!(
+                err.contains(&file) && err.contains(&format!("angle '{angle}'")),
+                "{err}"
+            );
+        }
+        let ok = defaults()
+            .parse(Path::new("P1_2018-04-02_10-00-00_Vis_SV_324.png"))
+            .unwrap();
+        assert_eq!(ok.view, View::Side(324));
     }
 
     #[test]

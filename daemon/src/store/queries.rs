@@ -46,7 +46,8 @@ pub struct ImageCounts {
     pub counted: i64,
     /// Same content as a counted image.
     pub duplicate: i64,
-    /// Failed.
+    /// Failed, current versions only (a failed version replaced by a newer
+    /// one is not counted).
     pub failed: i64,
     /// Imported observations.
     pub imported: i64,
@@ -140,7 +141,10 @@ impl Store {
         let mut c = ImageCounts::default();
         let mut stmt = self
             .conn
-            .prepare("SELECT state, COUNT(*) FROM images GROUP BY state")?;
+            // A failed version that a newer one replaced is history, not a failure to fix.
+            .prepare(
+                "SELECT state, COUNT(*) FROM images WHERE state != 'failed' OR superseded = 0 GROUP BY state",
+            )?;
         for row in stmt.query_map([], |r| Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)?)))? {
             let (state, n) = row?;
             match state.as_str() {
@@ -227,7 +231,8 @@ impl Store {
     /// The most recent failures: (path, error).
     pub fn recent_failures(&self, n: usize) -> anyhow::Result<Vec<(String, String)>> {
         let mut stmt = self.conn.prepare(
-            "SELECT path, COALESCE(error, '') FROM images WHERE state = 'failed' ORDER BY updated_at DESC LIMIT ?1",
+            "SELECT path, COALESCE(error, '') FROM images WHERE state = 'failed' AND superseded = 0
+             ORDER BY updated_at DESC LIMIT ?1",
         )?;
         let rows = stmt
             .query_map([n as i64], |r| Ok((r.get(0)?, r.get(1)?)))?

@@ -262,6 +262,32 @@ fn failures_are_recorded_and_retried_only_when_transient() {
 }
 
 #[test]
+fn a_failure_replaced_by_a_newer_version_is_not_counted_as_failed() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    let failed = |error: &str| Outcome::Failed {
+        name: None,
+        error: error.into(),
+        retry: false,
+    };
+    s.record(&facts("P1_a.png", "truncated"), failed("truncated PNG"))
+        .unwrap();
+    s.record(&facts("P2_a.png", "corrupt"), failed("corrupt PNG"))
+        .unwrap();
+    assert_eq!(s.image_counts().unwrap().failed, 2);
+    // The station delivers P1's file again, whole: the failure is history.
+    let n = name("P1", day(0), View::Side(0));
+    s.record(&facts("P1_a.png", "whole"), Outcome::Counted(&n, &count(8)))
+        .unwrap();
+    let c = s.image_counts().unwrap();
+    assert_eq!((c.failed, c.counted), (1, 1));
+    assert_eq!(
+        s.recent_failures(5).unwrap(),
+        vec![("P2_a.png".to_string(), "corrupt PNG".to_string())]
+    );
+}
+
+#[test]
 fn late_and_out_of_order_images_give_the_same_timeline() {
     let counts = [8u32, 8, 10, 10, 11, 11, 12, 13, 14, 12, 14];
     let mut images: Vec<(usize, u16)> = Vec::new();
