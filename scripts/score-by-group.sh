@@ -7,15 +7,16 @@
 #   DATASET: a phyllo-gen dataset (every split is counted), e.g.
 #            /work/data/calib-e40-s700101 (models/eval-sets.tsv)
 # Environment: THREADS [2], PHYLLO_DEV_DATA [../shared/data/unl-maize-dev],
-#   REAL [1; 0 leaves the real rows out], EXTRA [more phyllo eval arguments].
+#   REAL [1; 0 leaves the real rows out], EXTRA [more phyllo eval arguments],
+#   PHYLLO_BIN [a phyllo binary to use instead of building target/release/phyllo].
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
-[ $# -ge 2 ] || { sed -n '2,11p' "$0"; exit 2; }
+[ $# -ge 2 ] || { sed -n '2,12p' "$0"; exit 2; }
 data=$(realpath "$1")
 shift
 dev=${PHYLLO_DEV_DATA:-$root/../shared/data/unl-maize-dev}
-bin=$root/target/release/phyllo
-cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
+bin=${PHYLLO_BIN:-$root/target/release/phyllo}
+[ -n "${PHYLLO_BIN:-}" ] || cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
 ej=$root/scripts/eval_json.py
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
