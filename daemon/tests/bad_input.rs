@@ -407,6 +407,30 @@ fn cases(site: &Site) -> Vec<Case> {
         Failed("date/time is invalid"),
     );
     add(
+        "an ANSI escape and a carriage return in folder names",
+        format!("night\u{1b}[31m/shelf\r2/{}", name("ESC", next())),
+        Make::Bytes(png(DynamicImage::ImageRgb8(noise(64, 64, 33)))),
+        Counted,
+    );
+    add(
+        "a capture time decades ahead (2091)",
+        "D_2091-05-09_10-00-00_Vis_SV_0.png".into(),
+        Make::Bytes(png(DynamicImage::ImageRgb8(noise(64, 64, 30)))),
+        Failed("ahead of this computer's clock"),
+    );
+    add(
+        "a capture time from a reset clock (1970)",
+        "D_1970-01-01_00-00-00_Vis_SV_0.png".into(),
+        Make::Bytes(png(DynamicImage::ImageRgb8(noise(64, 64, 31)))),
+        Failed("before 2010-01-01"),
+    );
+    add(
+        "an angle beyond any turntable (SV_99999999999999999999)",
+        "D_2019-02-03_10-00-00_Vis_SV_99999999999999999999.png".into(),
+        Make::Bytes(png(DynamicImage::ImageRgb8(noise(64, 64, 32)))),
+        Failed("not an angle in degrees"),
+    );
+    add(
         "a plant id that looks like SQL",
         name("x'); DROP TABLE images;--", next()),
         Make::Bytes(png(DynamicImage::ImageRgb8(noise(64, 64, 18)))),
@@ -509,20 +533,22 @@ fn bad_input_each_kind_recorded_and_service_keeps_going() {
             eprintln!("SKIPPED case '{}': {why}", c.kind);
             continue;
         }
+        let stored = phyllo::domain::rel_path::encode(Path::new(&c.rel)).unwrap();
         let got = {
             let s = phyllo::store::Store::open_read_only(&site.db).unwrap();
             let mut st = s
                 .conn()
                 .prepare("SELECT state, error FROM images WHERE path = ?1")
                 .unwrap();
-            st.query_map([&c.rel], |r| {
+            // Stored, and shown, as rel_path's lossless printable text.
+            st.query_map([&stored], |r| {
                 Ok((r.get::<_, String>(0)?, r.get::<_, Option<String>>(1)?))
             })
             .unwrap()
             .map(Result::unwrap)
             .collect::<Vec<_>>()
         };
-        let shown = phyllo::domain::names::printable(&c.rel);
+        let shown = stored.clone();
         let file_name =
             phyllo::domain::names::printable(Path::new(&c.rel).file_name().unwrap().to_str().unwrap());
         let ok = match (&c.expect, got.as_slice()) {
@@ -564,6 +590,19 @@ fn bad_input_each_kind_recorded_and_service_keeps_going() {
         1
     );
     assert_eq!(integrity(&site.db), "ok");
+    // Control characters anywhere in a path reach neither the journal nor `tail`'s feed raw.
+    assert!(
+        !site.log_text().contains('\u{1b}'),
+        "an ANSI escape reached the journal"
+    );
+    assert_eq!(
+        site.q("SELECT COUNT(*) FROM feed WHERE path LIKE '%' || char(27) || '%'"),
+        0
+    );
+    assert_eq!(
+        site.q("SELECT COUNT(*) FROM images WHERE path LIKE 'night\\x1b[31m/shelf\\x0d2/%'"),
+        1
+    );
     // A forged log line stays on the line of the message that names it.
     assert!(
         !site.log_text().lines().any(|l| l.starts_with("forged log line")),

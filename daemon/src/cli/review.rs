@@ -105,7 +105,7 @@ fn draw_overlays(
         let out_dir = dir.join(format!("{:02}-{}", i + 1, sanitize(&it.doubt.plant)));
         std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
         for rel in &it.images {
-            let path = config.drop_dir.join(rel);
+            let path = config.drop_dir.join(crate::domain::rel_path::decode(rel));
             let bytes = match std::fs::read(&path) {
                 Ok(b) => b,
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => {

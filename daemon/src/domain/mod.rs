@@ -13,6 +13,7 @@ pub mod leaf_site;
 pub mod least_squares;
 pub mod names;
 pub mod plant;
+pub mod rel_path;
 pub mod review;
 pub mod thermal;
 pub mod timeline;

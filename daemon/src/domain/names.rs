@@ -22,6 +22,10 @@ pub struct NamesConfig {
     pub presets: Vec<String>,
     /// Extra patterns, tried before the presets.
     pub patterns: Vec<PatternConfig>,
+    /// The earliest capture date believed; an image named earlier (a station
+    /// clock reset to 1970, a typo) fails instead of reaching the timeline.
+    /// Times more than [`MAX_AHEAD_HOURS`] ahead of the clock fail too.
+    pub earliest: NaiveDate,
 }
 
 impl Default for NamesConfig {
@@ -29,9 +33,14 @@ impl Default for NamesConfig {
         Self {
             presets: PRESET_NAMES.iter().map(|s| s.to_string()).collect(),
             patterns: vec![],
+            earliest: NaiveDate::from_ymd_opt(2010, 1, 1).expect("a valid date"),
         }
     }
 }
+
+/// How far ahead of the service's clock a capture time may be (a station
+/// clock running a little fast, a time zone's offset), in hours.
+pub const MAX_AHEAD_HOURS: i64 = 24;
 
 /// `[[names.patterns]]`: one custom file-name pattern.
 #[derive(Debug, Clone, Deserialize)]
@@ -146,6 +155,7 @@ pub struct ParsedName {
 #[derive(Debug, Clone)]
 pub struct NamePatterns {
     patterns: Vec<(String, Regex)>,
+    earliest: NaiveDate,
 }
 
 impl NamePatterns {
@@ -178,7 +188,32 @@ impl NamePatterns {
         if patterns.is_empty() {
             bail!("names: no presets and no patterns: no file could ever match");
         }
-        Ok(NamePatterns { patterns })
+        Ok(NamePatterns {
+            patterns,
+            earliest: cfg.earliest,
+        })
+    }
+
+    /// Refuses a capture time outside the plausible window: before
+    /// `[names] earliest` or more than [`MAX_AHEAD_HOURS`] after `now` (the
+    /// facility's local time). One image dated 2091 would otherwise give its
+    /// plant a phyllochron of years and leaves that "emerge" decades ahead.
+    pub fn check_time(&self, rel: &Path, taken_at: NaiveDateTime, now: NaiveDateTime) -> anyhow::Result<()> {
+        let shown = printable(&rel.to_string_lossy());
+        if taken_at.date() < self.earliest {
+            bail!(
+                "file {shown}: capture time {taken_at} is before {} ([names] earliest): a wrong station clock or name?",
+                self.earliest
+            );
+        }
+        let latest = now + chrono::Duration::hours(MAX_AHEAD_HOURS);
+        if taken_at > latest {
+            bail!(
+                "file {shown}: capture time {taken_at} is more than {MAX_AHEAD_HOURS} h ahead of this computer's clock ({}): a wrong station clock or name?",
+                now.format("%Y-%m-%d %H:%M")
+            );
+        }
+        Ok(())
     }
 
     /// Names of the patterns, in the order tried.
@@ -204,7 +239,9 @@ impl NamePatterns {
             if plant.is_empty() {
                 bail!("file {shown}: pattern '{name}' matched an empty plant id");
             }
-            if plant.chars().any(char::is_control) {
+            // Control characters and bytes that are not UTF-8 arrive escaped
+            // (`\xNN`, [`crate::domain::rel_path`]); raw ones from elsewhere.
+            if plant.chars().any(char::is_control) || plant.contains("\\x") {
                 bail!("file {shown}: pattern '{name}' matched a plant id with control characters");
             }
             let angle = match get("angle").filter(|a| !a.is_empty()) {
@@ -355,6 +392,37 @@ mod tests {
     }
 
     #[test]
+    fn capture_times_outside_the_plausible_window_are_refused() {
+        let p = defaults();
+        let now = dt("2026-12-06T10:00:00");
+        for (file, says) in [
+            (
+                "P1_2091-05-09_10-00-00_Vis_SV_0.png",
+                "ahead of this computer's clock",
+            ),
+            ("P1_1970-01-01_00-00-00_Vis_SV_0.png", "before 2010-01-01"),
+            (
+                "P1_2026-12-07_12-00-00_Vis_SV_0.png",
+                "ahead of this computer's clock",
+            ),
+        ] {
+            let n = p.parse(Path::new(file)).unwrap();
+            let err = format!(
+                "{:#}",
+                p.check_time(Path::new(file), n.taken_at, now).unwrap_err()
+            );
+            assert!(err.contains(file) && err.contains(says), "{err}");
+        }
+        for file in [
+            "P1_2010-01-01_00-00-00_Vis_SV_0.png",
+            "P1_2026-12-07_09-00-00_Vis_SV_0.png",
+        ] {
+            let n = p.parse(Path::new(file)).unwrap();
+            p.check_time(Path::new(file), n.taken_at, now).unwrap();
+        }
+    }
+
+    #[test]
     fn an_angle_out_of_range_is_an_error() {
         for angle in ["99999999999999999999", "360"] {
             let file = format!("P1_2018-04-02_10-00-00_Vis_SV_{angle}.png");
@@ -378,6 +446,7 @@ mod tests {
                 name: "site-b".into(),
                 regex: r"^(?P<plant>\w+)/(?P<date>\d{4}-\d{2}-\d{2})T(?P<time>\d{2}:\d{2}:\d{2})_(?P<kind>top|side)(?P<angle>\d*)\.png$".into(),
             }],
+            ..NamesConfig::default()
         };
         let p = NamePatterns::from_config(&cfg).unwrap();
         assert_eq!(p.names(), vec!["site-b", "flat"]);

@@ -44,7 +44,7 @@ pub fn recount(
 ) -> anyhow::Result<RecountSummary> {
     let mut summary = RecountSummary::default();
     for img in store.counted_images(plant)? {
-        let path = drop_dir.join(&img.path);
+        let path = drop_dir.join(crate::domain::rel_path::decode(&img.path));
         let bytes = match std::fs::read(&path) {
             Ok(b) => b,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {

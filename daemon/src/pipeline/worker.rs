@@ -249,7 +249,7 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
                 // the same refusal is recognised as unchanged and not recorded twice.
                 sha256: sha256_hex(format!("phyllo-refused:{}", r.error).as_bytes()),
             };
-            if let Precheck::Skip(why) = store.precheck(&facts)? {
+            if let Precheck::Skip(why) = store.precheck(&facts, None)? {
                 tracing::debug!("skip: {why}");
                 ctx.stats.skipped.fetch_add(1, Ordering::Relaxed);
                 return Ok(None);
@@ -275,12 +275,22 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
         mtime: Some(mtime),
         sha256: sha256_hex(&bytes),
     };
-    if let Precheck::Skip(why) = store.precheck(&facts)? {
-        tracing::debug!("skip: {why}");
-        ctx.stats.skipped.fetch_add(1, Ordering::Relaxed);
-        return Ok(None);
-    }
-    let recorded = match ctx.names.parse(Path::new(&job.rel)) {
+    let rel = Path::new(&job.rel);
+    let now = chrono::Local::now().naive_local();
+    let parsed = ctx
+        .names
+        .parse(rel)
+        .and_then(|name| ctx.names.check_time(rel, name.taken_at, now).map(|()| name));
+    let reused = match store.precheck(&facts, parsed.as_ref().ok())? {
+        Precheck::Skip(why) => {
+            tracing::debug!("skip: {why}");
+            ctx.stats.skipped.fetch_add(1, Ordering::Relaxed);
+            return Ok(None);
+        }
+        Precheck::Reuse { count, original } => Some((count, original)),
+        Precheck::Process => None,
+    };
+    let recorded = match parsed {
         Err(e) => {
             let error = format!("{e:#}");
             tracing::warn!("{error}");
@@ -292,6 +302,20 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
                     retry: false,
                 },
             )?
+        }
+        Ok(name) if reused.is_some() => {
+            let (count, original) = reused.expect("checked");
+            // Not a duplicate: the name says another plant, time or view (or the path
+            // went back to an older version), so it is an observation of its own.
+            tracing::warn!(
+                "{}: same bytes as {original}, counted there; its count ({} leaves) is reused for {} {} {}",
+                job.rel,
+                count.leaf_count,
+                name.plant,
+                name.taken_at,
+                name.view
+            );
+            store.record(&facts, Outcome::Counted(&name, &count))?
         }
         Ok(name) => {
             let counted = std::panic::catch_unwind(AssertUnwindSafe(|| ctx.counter.count(&job.path, &bytes)));

@@ -27,7 +27,7 @@ pub fn draw_sites(t: &PlantTimeline, drop_dir: &Path, dir: &Path) -> anyhow::Res
     let mut written = Vec::new();
     let mut unreadable = Vec::new();
     for site in &t.sites {
-        let src = drop_dir.join(&site.image);
+        let src = drop_dir.join(crate::domain::rel_path::decode(&site.image));
         // Decoded as counted (EXIF orientation applied), so the leaf's box lands on it.
         let full = match phyllo_inference::decode::read_rgb(&src) {
             Ok(img) => img,
@@ -91,7 +91,7 @@ pub fn draw_newest(timelines: &[PlantTimeline], drop_dir: &Path, dir: &Path) -> 
         );
         let out = dir.join(&name);
         if !out.exists() {
-            let src = drop_dir.join(&site.image);
+            let src = drop_dir.join(crate::domain::rel_path::decode(&site.image));
             let Ok(full) = phyllo_inference::decode::read_rgb(&src) else {
                 done.gone += 1;
                 continue;

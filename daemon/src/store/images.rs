@@ -23,7 +23,7 @@ pub struct FileFacts {
 }
 
 /// A count to store, independent of the inference crate's types.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct CountRecord {
     /// Leaves counted.
     pub leaf_count: u32,
@@ -88,6 +88,15 @@ pub enum Precheck {
     Skip(String),
     /// Count it.
     Process,
+    /// Its bytes were counted before under another identity (another
+    /// plant, time or view, or a version its path has since left): an
+    /// observation of its own, with the count already made.
+    Reuse {
+        /// The count made of the same bytes.
+        count: CountRecord,
+        /// Where they were counted (path relative to the drop directory).
+        original: String,
+    },
 }
 
 impl Store {
@@ -109,10 +118,13 @@ impl Store {
         })
     }
 
-    /// Decides, from the content hash, whether a file needs counting. Same
-    /// content at the same path: skip (and remember the new mtime). Content
-    /// already counted elsewhere: recorded here as a duplicate, skip.
-    pub fn precheck(&mut self, f: &FileFacts) -> anyhow::Result<Precheck> {
+    /// Decides, from the content hash and the name's identity, whether a file
+    /// needs counting (docs/daemon.md, "An image's identity"). Same content
+    /// at the same path: skip (and remember the new mtime). Content counted
+    /// as the same image (plant, time and view) elsewhere: recorded here as a
+    /// duplicate, skip. Content counted under another identity: reuse that
+    /// count. Without a name (it does not parse) any counted copy is a duplicate.
+    pub fn precheck(&mut self, f: &FileFacts, name: Option<&ParsedName>) -> anyhow::Result<Precheck> {
         let tx = self
             .conn
             .transaction_with_behavior(TransactionBehavior::Immediate)?;
@@ -135,7 +147,7 @@ impl Store {
                 });
             }
         }
-        if let Some((orig_id, orig_path)) = counted_with_hash(&tx, &f.sha256)? {
+        if let Some((orig_id, orig_path)) = counted_same_image(&tx, &f.sha256, name)? {
             let stale = insert_duplicate(&tx, f, latest.as_ref(), orig_id, &orig_path)?;
             refresh(&tx, &self.fit, &stale, None)?;
             tx.commit()?;
@@ -143,6 +155,11 @@ impl Store {
                 "{} has the same content as {orig_path}",
                 f.rel
             )));
+        }
+        if name.is_some() {
+            if let Some((count, original)) = counted_count(&tx, &f.sha256)? {
+                return Ok(Precheck::Reuse { count, original });
+            }
         }
         Ok(Precheck::Process)
     }
@@ -159,7 +176,7 @@ impl Store {
         let recorded = match outcome {
             Outcome::Counted(name, count) => {
                 // Re-checked inside the write lock: another worker may have counted this content.
-                if let Some((orig_id, orig_path)) = counted_with_hash(&tx, &f.sha256)? {
+                if let Some((orig_id, orig_path)) = counted_same_image(&tx, &f.sha256, Some(name))? {
                     if same.map(|l| l.id) != Some(orig_id) {
                         let stale = insert_duplicate(&tx, f, latest.as_ref(), orig_id, &orig_path)?;
                         refresh(&tx, &self.fit, &stale, None)?;
@@ -286,13 +303,60 @@ fn latest_version(tx: &Transaction, rel: &str) -> anyhow::Result<Option<Latest>>
         .optional()?)
 }
 
-/// The first counted image with this content (id, path).
-fn counted_with_hash(tx: &Transaction, sha: &str) -> anyhow::Result<Option<(i64, String)>> {
+/// The first counted image with this content that is the same image as
+/// `name` says (plant, time and view; current versions only), as (id, path);
+/// without a name, the first counted image with this content.
+fn counted_same_image(
+    tx: &Transaction,
+    sha: &str,
+    name: Option<&ParsedName>,
+) -> anyhow::Result<Option<(i64, String)>> {
+    let Some(n) = name else {
+        return Ok(tx
+            .prepare_cached(
+                "SELECT id, path FROM images WHERE sha256 = ?1 AND state = 'counted' ORDER BY id LIMIT 1",
+            )?
+            .query_row([sha], |r| Ok((r.get(0)?, r.get(1)?)))
+            .optional()?);
+    };
     Ok(tx
         .prepare_cached(
-            "SELECT id, path FROM images WHERE sha256 = ?1 AND state = 'counted' ORDER BY id LIMIT 1",
+            "SELECT i.id, i.path FROM images i JOIN plants p ON p.id = i.plant_id
+             WHERE i.sha256 = ?1 AND i.state = 'counted' AND i.superseded = 0
+               AND p.name = ?2 AND i.taken_at = ?3 AND i.view = ?4
+             ORDER BY i.id LIMIT 1",
         )?
-        .query_row([sha], |r| Ok((r.get(0)?, r.get(1)?)))
+        .query_row(params![sha, n.plant, iso(n.taken_at), n.view.to_string()], |r| {
+            Ok((r.get(0)?, r.get(1)?))
+        })
+        .optional()?)
+}
+
+/// The newest count made of this content, and the image it was made of.
+fn counted_count(tx: &Transaction, sha: &str) -> anyhow::Result<Option<(CountRecord, String)>> {
+    let json = |text: Option<String>| {
+        text.and_then(|t| serde_json::from_str(&t).ok())
+            .unwrap_or_default()
+    };
+    Ok(tx
+        .prepare_cached(
+            "SELECT o.leaf_count, o.instances, o.timing, o.ms_total, o.model_id, o.settings, i.path
+             FROM images i JOIN observations o ON o.image_id = i.id
+             WHERE i.sha256 = ?1 AND i.state = 'counted' ORDER BY i.id DESC LIMIT 1",
+        )?
+        .query_row([sha], |r| {
+            Ok((
+                CountRecord {
+                    leaf_count: r.get(0)?,
+                    instances: json(r.get(1)?),
+                    timing: json(r.get(2)?),
+                    ms_total: r.get::<_, Option<f64>>(3)?.unwrap_or(0.0),
+                    model_id: r.get(4)?,
+                    settings: json(r.get(5)?),
+                },
+                r.get(6)?,
+            ))
+        })
         .optional()?)
 }
 

@@ -65,7 +65,7 @@ fn counted_image_lands_with_timeline_and_feed() {
     let dir = tempfile::tempdir().unwrap();
     let mut s = open(&dir);
     let f = facts("P1_a.png", "a");
-    assert_eq!(s.precheck(&f).unwrap(), Precheck::Process);
+    assert_eq!(s.precheck(&f, None).unwrap(), Precheck::Process);
     let r = s
         .record(
             &f,
@@ -150,11 +150,11 @@ fn same_content_is_never_counted_twice() {
     )
     .unwrap();
     // Same path, same content (touched, or rescanned after a restart).
-    assert!(matches!(s.precheck(&f).unwrap(), Precheck::Skip(_)));
+    assert!(matches!(s.precheck(&f, None).unwrap(), Precheck::Skip(_)));
     assert!(s.is_known("P1_a.png", 1, "mtime-of-a").unwrap());
     // Same content copied elsewhere: recorded as a duplicate, not counted.
     let copy = facts("copy/P1_a.png", "a");
-    assert!(matches!(s.precheck(&copy).unwrap(), Precheck::Skip(why) if why.contains("same content")));
+    assert!(matches!(s.precheck(&copy, None).unwrap(), Precheck::Skip(why) if why.contains("same content")));
     // Even if two workers raced past the precheck, the write re-checks.
     let copy2 = facts("copy2/P1_a.png", "a");
     let r = s
@@ -170,8 +170,65 @@ fn same_content_is_never_counted_twice() {
     // Across a restart too.
     drop(s);
     let mut s = open(&dir);
-    assert!(matches!(s.precheck(&f).unwrap(), Precheck::Skip(_)));
+    assert!(matches!(s.precheck(&f, None).unwrap(), Precheck::Skip(_)));
     assert_eq!(n_obs(&s), 1);
+}
+
+#[test]
+fn a_reverted_file_is_counted_again_and_its_plant_keeps_its_session() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    let n = name("P1", day(0), View::Side(0));
+    let (a, b) = (facts("P1_a.png", "A"), facts("P1_a.png", "B"));
+    s.record(&a, Outcome::Counted(&n, &count(8))).unwrap();
+    assert_eq!(s.precheck(&b, Some(&n)).unwrap(), Precheck::Process);
+    s.record(&b, Outcome::Counted(&n, &count(9))).unwrap();
+    // A again at the same path: not a duplicate of the version it replaced.
+    let Precheck::Reuse {
+        count: again,
+        original,
+    } = s.precheck(&a, Some(&n)).unwrap()
+    else {
+        panic!("a reverted file must be counted again");
+    };
+    assert_eq!((again.leaf_count, original.as_str()), (8, "P1_a.png"));
+    assert!(matches!(
+        s.record(&a, Outcome::Counted(&n, &again)).unwrap(),
+        Recorded::Counted { .. }
+    ));
+    let t = s.plant_timeline("P1").unwrap().unwrap();
+    assert_eq!((t.sessions.len(), t.sessions[0].fused), (1, 8.0));
+}
+
+#[test]
+fn the_same_bytes_under_another_plant_are_an_observation_of_their_own() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    let na = name("RA-1", day(0), View::Side(0));
+    s.record(&facts("RA-1_x.png", "A"), Outcome::Counted(&na, &count(8)))
+        .unwrap();
+    // Renamed (or copied) to another plant's name: that plant must exist, with the count.
+    let nb = name("RB-1", day(0), View::Side(0));
+    let b = facts("RB-1_x.png", "A");
+    let Precheck::Reuse {
+        count: reused,
+        original,
+    } = s.precheck(&b, Some(&nb)).unwrap()
+    else {
+        panic!("another plant's image is not a duplicate");
+    };
+    assert_eq!(original, "RA-1_x.png");
+    s.record(&b, Outcome::Counted(&nb, &reused)).unwrap();
+    for plant in ["RA-1", "RB-1"] {
+        let t = s.plant_timeline(plant).unwrap().unwrap();
+        assert_eq!(t.sessions[0].fused, 8.0, "{plant}");
+    }
+    // Moved into a folder under the same name: the same image, a duplicate.
+    let moved = facts("moved/RA-1_x.png", "A");
+    assert!(
+        matches!(s.precheck(&moved, Some(&na)).unwrap(), Precheck::Skip(why) if why.contains("same content"))
+    );
+    assert_eq!(n_obs(&s), 2);
 }
 
 #[test]
@@ -187,7 +244,7 @@ fn changed_file_is_a_new_version_and_replaces_the_count() {
     )
     .unwrap();
     let v2 = facts("P1_a.png", "v2");
-    assert_eq!(s.precheck(&v2).unwrap(), Precheck::Process);
+    assert_eq!(s.precheck(&v2, None).unwrap(), Precheck::Process);
     s.record(&v2, Outcome::Counted(&n0, &count(6))).unwrap();
     let versions: Vec<(i64, String, i64)> = s
         .conn()
@@ -232,13 +289,17 @@ fn failures_are_recorded_and_retried_only_when_transient() {
     )
     .unwrap();
     assert!(s.is_known("holiday.png", 1, "mtime-of-x").unwrap());
-    assert!(matches!(s.precheck(&bad).unwrap(), Precheck::Skip(_)));
+    assert!(matches!(s.precheck(&bad, None).unwrap(), Precheck::Skip(_)));
     assert_eq!(s.recent_failures(5).unwrap(), vec![("holiday.png".into(), err)]);
     // A runtime failure is retried up to max_attempts (3).
     let f = facts("P1_a.png", "a");
     let n = name("P1", day(0), View::Side(0));
     for attempt in 1..=3 {
-        assert_eq!(s.precheck(&f).unwrap(), Precheck::Process, "attempt {attempt}");
+        assert_eq!(
+            s.precheck(&f, None).unwrap(),
+            Precheck::Process,
+            "attempt {attempt}"
+        );
         s.record(
             &f,
             Outcome::Failed {
@@ -249,7 +310,7 @@ fn failures_are_recorded_and_retried_only_when_transient() {
         )
         .unwrap();
     }
-    assert!(matches!(s.precheck(&f).unwrap(), Precheck::Skip(_)));
+    assert!(matches!(s.precheck(&f, None).unwrap(), Precheck::Skip(_)));
     let attempts: i64 = s
         .conn()
         .query_row("SELECT attempts FROM images WHERE path = 'P1_a.png'", [], |r| {

@@ -81,17 +81,10 @@ impl Filter {
         &self.root
     }
 
-    /// Path relative to the drop directory with `/` separators, if inside it.
+    /// Path relative to the drop directory with `/` separators, if inside
+    /// it, as lossless printable text ([`crate::domain::rel_path`]).
     pub fn rel(&self, path: &Path) -> Option<String> {
-        let rel = path.strip_prefix(&self.root).ok()?;
-        let parts: Vec<String> = rel
-            .components()
-            .map(|c| c.as_os_str().to_string_lossy().into_owned())
-            .collect();
-        if parts.is_empty() {
-            return None;
-        }
-        Some(parts.join("/"))
+        crate::domain::rel_path::encode(path.strip_prefix(&self.root).ok()?)
     }
 
     /// True if a directory below the root should be descended into.
