@@ -18,7 +18,6 @@ pub mod cli;
 pub mod config;
 pub mod disk;
 pub mod domain;
-pub mod evaluation;
 pub mod ops;
 pub mod pipeline;
 pub mod sinks;

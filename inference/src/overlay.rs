@@ -3,11 +3,14 @@
 //! (white-ringed dots, models with a tip output), the count written in the
 //! corner.
 
+use std::path::{Path, PathBuf};
+
 use font8x8::UnicodeFonts;
 use image::{Rgb, RgbImage};
 use phyllo_contract::Contract;
 
 use crate::counter::Analysis;
+use crate::{Counter, InferenceError};
 
 /// Draws `analysis` over `img` (the original image it was computed from).
 pub fn render(contract: &Contract, img: &RgbImage, analysis: &Analysis, untrained: bool) -> RgbImage {
@@ -73,6 +76,33 @@ pub fn render(contract: &Contract, img: &RgbImage, analysis: &Analysis, untraine
     out
 }
 
+/// Draws `analysis` over the image it was made from (`bytes`, read from
+/// `path`), decoded within `counter`'s limits; an untrained model's overlay
+/// says so.
+pub fn render_encoded(
+    counter: &Counter,
+    path: &Path,
+    bytes: &[u8],
+    analysis: &Analysis,
+) -> Result<RgbImage, InferenceError> {
+    let img = crate::decode::decode_rgb(path, bytes, &counter.config().limits)?;
+    Ok(render(
+        Contract::embedded(),
+        &img,
+        analysis,
+        !counter.model_info().trained,
+    ))
+}
+
+/// Where an overlay of `image` is written: `DIR/<image stem>.<kind>.png`.
+pub fn output_path(dir: &Path, image: &Path, kind: &str) -> PathBuf {
+    let stem = image
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "image".into());
+    dir.join(format!("{stem}.{kind}.png"))
+}
+
 fn put(img: &mut RgbImage, x: i64, y: i64, c: Rgb<u8>) {
     if x >= 0 && y >= 0 && (x as u32) < img.width() && (y as u32) < img.height() {
         img.put_pixel(x as u32, y as u32, c);
@@ -106,5 +136,23 @@ fn text(img: &mut RgbImage, s: &str, x: u32, y: u32, scale: u32) {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_overlay_is_named_after_its_image_and_kind() {
+        let dir = Path::new("out");
+        assert_eq!(
+            output_path(dir, Path::new("in/plant_SV_108.jpg"), "tips"),
+            dir.join("plant_SV_108.tips.png")
+        );
+        assert_eq!(
+            output_path(dir, Path::new(""), "overlay"),
+            dir.join("image.overlay.png")
+        );
     }
 }

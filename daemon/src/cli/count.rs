@@ -5,12 +5,12 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context;
-use phyllo_contract::Contract;
-use phyllo_inference::counter::Analysis;
 use phyllo_inference::{overlay, Counter, InferenceError};
 use serde_json::json;
 
 use super::counter_args::CounterArgs;
+// `phyllo review --overlays` draws its pictures the same way.
+pub(super) use phyllo_inference::overlay::render_encoded as render_overlay;
 
 /// Arguments of `phyllo count`.
 #[derive(Debug, clap::Args)]
@@ -106,35 +106,10 @@ fn count_one(
     let analysis = counter.analyse_bytes(path, &bytes)?;
     if let Some(dir) = overlay_dir {
         let drawn = render_overlay(counter, path, &bytes, &analysis)?;
-        let out = overlay_path(dir, path, "overlay");
+        let out = overlay::output_path(dir, path, "overlay");
         drawn
             .save(&out)
             .map_err(|e| InferenceError::image(&out, format!("cannot write overlay: {e}")))?;
     }
     Ok(analysis.result)
-}
-
-/// Draws `analysis` over the image it was made from (`bytes`, read from `path`).
-pub(super) fn render_overlay(
-    counter: &Counter,
-    path: &Path,
-    bytes: &[u8],
-    analysis: &Analysis,
-) -> Result<image::RgbImage, InferenceError> {
-    let img = phyllo_inference::decode::decode_rgb(path, bytes, &counter.config().limits)?;
-    Ok(overlay::render(
-        Contract::embedded(),
-        &img,
-        analysis,
-        !counter.model_info().trained,
-    ))
-}
-
-/// `DIR/<image stem>.<kind>.png`.
-pub(super) fn overlay_path(dir: &Path, image: &Path, kind: &str) -> PathBuf {
-    let stem = image
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "image".into());
-    dir.join(format!("{stem}.{kind}.png"))
 }

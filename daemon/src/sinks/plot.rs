@@ -5,12 +5,10 @@
 //! rendering needs no system fonts and works offline and in a hardened unit.
 
 use std::path::Path;
-use std::sync::Once;
 
 use anyhow::{anyhow, Context};
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
-use plotters::style::FontStyle;
 
 use crate::domain::thermal::ThermalClock;
 use crate::store::{parse_iso, PlantTimeline};
@@ -26,16 +24,7 @@ pub enum TimeAxis<'a> {
     DegreeDays(&'a ThermalClock),
 }
 
-static FONT: Once = Once::new();
-
-/// Registers the embedded DejaVu Sans as plotters' "sans-serif" (once).
-pub fn register_font() {
-    FONT.call_once(|| {
-        if plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular()).is_err() {
-            tracing::warn!("could not register the embedded font; the plot will have no text");
-        }
-    });
-}
+pub use phyllo_evaluation::plots::register_font;
 
 /// Draws the timeline: per-view counts (grey; top views hollow; people's
 /// counts black crosses), fused counts (blue; ringed orange where the

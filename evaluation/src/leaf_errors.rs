@@ -277,7 +277,7 @@ impl LeafErrors {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::evaluation::segmentation::PixelMap;
+    use crate::segmentation::PixelMap;
     use phyllo_contract::{LEAF, STEM};
 
     fn map(rows: &[&str]) -> PixelMap {

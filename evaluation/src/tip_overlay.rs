@@ -46,7 +46,7 @@ pub fn draw(img: &mut RgbImage, tips: &[[f32; 2]], m: &TipMatch, instances: &[In
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::evaluation::segmentation::PixelMap;
+    use crate::segmentation::PixelMap;
     use phyllo_contract::LEAF;
 
     #[test]

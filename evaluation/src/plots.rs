@@ -1,13 +1,29 @@
 //! The paper's Figure 7 pair: predicted vs true counts with the regression
 //! line, and the histogram of count errors.
+//!
+//! Text uses DejaVu Sans, embedded in the binary (crate `dejavu`) and
+//! registered with plotters' ab_glyph backend ([`register_font`], which the
+//! daemon's plots use too), so rendering needs no system fonts.
 
 use std::path::Path;
+use std::sync::Once;
 
 use anyhow::anyhow;
 use plotters::prelude::*;
+use plotters::style::FontStyle;
 
 use super::metrics::{CountMetrics, CountPair};
-use crate::sinks::plot::register_font;
+
+static FONT: Once = Once::new();
+
+/// Registers the embedded DejaVu Sans as plotters' "sans-serif" (once).
+pub fn register_font() {
+    FONT.call_once(|| {
+        if plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular()).is_err() {
+            tracing::warn!("could not register the embedded font; the plot will have no text");
+        }
+    });
+}
 
 /// Writes `scatter.png` and `error_histogram.png` into `dir`.
 pub fn write(pairs: &[CountPair], metrics: &CountMetrics, title: &str, dir: &Path) -> anyhow::Result<()> {
