@@ -93,3 +93,27 @@ fn service_exposure_is_at_most_2() {
         assert!(level <= 2.0, "{}: {line}", unit.display());
     }
 }
+
+/// The service's memory is bounded: a runaway decode is stopped by the kernel,
+/// not the greenhouse computer (read from the unit itself, no systemd needed).
+#[test]
+fn the_service_sets_a_memory_limit() {
+    let unit =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../systemd/phyllo.service"))
+            .unwrap();
+    let value = |key: &str| {
+        unit.lines()
+            .find_map(|l| l.strip_prefix(key)?.strip_prefix('='))
+            .map(str::trim)
+            .map(String::from)
+    };
+    let gib = |v: Option<String>| -> f64 {
+        let v = v.expect("set in phyllo.service");
+        v.strip_suffix('G').expect("in G").parse().unwrap()
+    };
+    let (high, max) = (gib(value("MemoryHigh")), gib(value("MemoryMax")));
+    assert!(
+        high >= 2.0 && max > high && max <= 8.0,
+        "MemoryHigh={high}G MemoryMax={max}G"
+    );
+}

@@ -224,7 +224,9 @@ impl NamePatterns {
     /// Parses a path relative to the drop directory. The error names the file
     /// and every pattern tried.
     pub fn parse(&self, rel: &Path) -> anyhow::Result<ParsedName> {
-        let s = rel.to_string_lossy().replace('\\', "/");
+        // No `\` → `/` mapping: a backslash here is rel_path's escape (the
+        // drop directory's paths are joined with `/` already).
+        let s = rel.to_string_lossy();
         // Control characters (a newline in a file name) would forge lines in the
         // log, `tail` and the CSV exports: shown escaped, and refused in plant ids.
         let shown = printable(&s);
@@ -481,6 +483,12 @@ mod tests {
             "{e}"
         );
         assert!(!e.contains('\n'), "{e}");
+        // As the drop directory's paths arrive (crate::domain::rel_path): escaped.
+        let e = p
+            .parse(Path::new("EVIL\\x0aline_2018-04-02_10-00-00_Vis_SV_0.png"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("control characters") && e.contains("EVIL\\x0aline"), "{e}");
         let e = p.parse(Path::new("x\u{1b}[2J.png")).unwrap_err().to_string();
         assert!(!e.contains('\u{1b}') && e.contains("\\u{1b}"), "{e}");
         // Quotes and spaces are data, not control characters.

@@ -12,6 +12,7 @@
 //! See `docs/ARCHITECTURE.md`.
 
 pub mod counting;
+pub mod memory;
 pub mod service;
 pub mod source;
 pub mod systemd;

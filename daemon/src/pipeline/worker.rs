@@ -231,6 +231,8 @@ fn read_inside(root: &Path, job: &Job) -> Read {
 
 /// Processes one file. Returns what the store did, `None` if it was skipped.
 pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<Option<Recorded>> {
+    // Held through the read, the decode and the count (crate::pipeline::memory).
+    let _large = super::memory::large_file_permit(std::fs::metadata(&job.path).map_or(0, |m| m.len()));
     let (bytes, meta) = match read_inside(&ctx.config.drop_dir, job) {
         Read::Bytes(b, m) => (b, m),
         Read::Vanished => {
