@@ -133,6 +133,7 @@ pub fn environment(
         .with_name("phyllo")
         .build()
         .map_err(|e| InferenceError::Runtime(format!("cannot start {}: {e}", path.display())))?;
+    tracing::debug!("ONNX Runtime loaded from {}", path.display());
     Ok(&RUNTIME.get_or_init(|| Loaded { path, env }).env)
 }
 
