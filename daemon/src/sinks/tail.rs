@@ -29,15 +29,18 @@ pub fn format_row(r: &FeedRow) -> String {
                 .join(",")
         )
     };
-    let num = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
+    // People read whole leaves (the CSVs keep the fractions): the fused count
+    // rounded, and leaves emerged as the leaves the fit has dated so far.
+    let fused = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{}", v.round()));
+    let emerged = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{}", (v + 1e-6).floor()));
     match r.kind.as_str() {
         "count" => format!(
             "{}  {plant}  {}  count {}  fused {}  emerged {}{new}",
             r.taken_at.as_deref().unwrap_or("-"),
             r.view.as_deref().unwrap_or("-"),
             r.leaf_count.map_or("-".into(), |c| c.to_string()),
-            num(r.fused),
-            num(r.leaves_emerged),
+            fused(r.fused),
+            emerged(r.leaves_emerged),
         ),
         "event" => format!(
             "{}  {plant}  EVENT  {}",
@@ -52,8 +55,13 @@ pub fn format_row(r: &FeedRow) -> String {
         "import" => format!(
             "{}  {plant}  IMPORT  fused {}  emerged {}{new}",
             r.at,
-            num(r.fused),
-            num(r.leaves_emerged)
+            fused(r.fused),
+            emerged(r.leaves_emerged)
+        ),
+        "withdrawn" => format!(
+            "{}  {plant}  WITHDRAWN  {}",
+            r.at,
+            r.message.as_deref().unwrap_or("")
         ),
         "failed" => format!("{}  FAILED  {}", r.at, r.message.as_deref().unwrap_or("")),
         "recount" => format!(
@@ -161,6 +169,40 @@ mod tests {
         assert_eq!(
             format_row(&row),
             "2026-05-04T10:00:00.000  P1  LOST  a leaf died by 2026-05-04 10:00 (1 lost in all)"
+        );
+    }
+
+    #[test]
+    fn counts_read_as_whole_leaves() {
+        let row = FeedRow {
+            kind: "count".into(),
+            plant: Some("P1".into()),
+            taken_at: Some("2026-05-01T10:00:00.000".into()),
+            view: Some("SV_36".into()),
+            leaf_count: Some(5),
+            fused: Some(4.33),
+            leaves_emerged: Some(3.8),
+            new_leaves: vec![3],
+            ..FeedRow::default()
+        };
+        assert_eq!(
+            format_row(&row),
+            "2026-05-01T10:00:00.000  P1  SV_36  count 5  fused 4  emerged 3  new leaves 3"
+        );
+    }
+
+    #[test]
+    fn a_withdrawn_leaf_reads_with_its_plant() {
+        let row = FeedRow {
+            at: "2026-12-05T08:00:00.000Z".into(),
+            kind: "withdrawn".into(),
+            plant: Some("P1".into()),
+            message: Some("leaf 6 withdrawn: with the newer images the fit no longer finds it".into()),
+            ..FeedRow::default()
+        };
+        assert_eq!(
+            format_row(&row),
+            "2026-12-05T08:00:00.000Z  P1  WITHDRAWN  leaf 6 withdrawn: with the newer images the fit no longer finds it"
         );
     }
 

@@ -284,8 +284,9 @@ fn write_events(
     Ok(())
 }
 
-/// The feed rows a refit announces: one per leaf that newly emerged, then one
-/// per leaf newly read as lost, dated by the session it first shows in.
+/// The feed rows a refit announces: one per leaf that newly emerged, one per
+/// leaf announced before that the fit no longer finds, then one per leaf
+/// newly read as lost, dated by the session it first shows in.
 fn leaf_news(
     plant: &str,
     tl: &Timeline,
@@ -314,6 +315,19 @@ fn leaf_news(
                     ", seen in {} at ({:.0}, {:.0})",
                     s.view, s.leaf.centre[0], s.leaf.centre[1]
                 ))
+            )),
+            ..FeedRow::default()
+        });
+    }
+    // A refit that no longer finds a leaf announced before takes it back aloud:
+    // `tail` said it emerged, so `tail` says it did not.
+    let now_found: BTreeSet<u32> = tl.events.iter().map(|e| e.leaf).collect();
+    for leaf in old.difference(&now_found) {
+        rows.push(FeedRow {
+            kind: "withdrawn".into(),
+            plant: Some(plant.to_string()),
+            message: Some(format!(
+                "leaf {leaf} withdrawn: with the newer images the fit no longer finds it"
             )),
             ..FeedRow::default()
         });

@@ -417,6 +417,36 @@ fn import_is_fused_like_model_counts_and_idempotent() {
 }
 
 #[test]
+fn a_leaf_the_refit_no_longer_finds_is_withdrawn_in_the_feed() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    let sheet = |counts: [u32; 3]| -> Vec<(String, NaiveDateTime, View, u32)> {
+        counts
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| ("P1".to_string(), day(i as i64), View::Side(0), c))
+            .collect()
+    };
+    let feed = |s: &Store, kind: &str| -> Vec<String> {
+        s.conn()
+            .prepare("SELECT message FROM feed WHERE kind = ?1 ORDER BY seq")
+            .unwrap()
+            .query_map([kind], |r| r.get(0))
+            .unwrap()
+            .collect::<Result<_, _>>()
+            .unwrap()
+    };
+    s.import("a.csv", &sheet([6, 6, 8]), None).unwrap();
+    assert_eq!(feed(&s, "event").len(), 2);
+    assert!(feed(&s, "withdrawn").is_empty());
+    // The sheet corrected: the last day had 6 leaves, so leaves 7 and 8 did not emerge.
+    s.import("a.csv", &sheet([6, 6, 6]), None).unwrap();
+    let withdrawn = feed(&s, "withdrawn");
+    assert_eq!(withdrawn.len(), 2, "{withdrawn:?}");
+    assert!(withdrawn[0].starts_with("leaf 7 withdrawn") && withdrawn[1].starts_with("leaf 8 withdrawn"));
+}
+
+#[test]
 fn a_leaf_read_as_lost_reaches_the_feed_once() {
     let dir = tempfile::tempdir().unwrap();
     let mut s = open(&dir);
