@@ -81,6 +81,16 @@ pub fn preset_regex(name: &str) -> Option<String> {
     })
 }
 
+/// A file name each built-in layout reads, for error messages.
+pub fn preset_example(name: &str) -> Option<&'static str> {
+    Some(match name {
+        "flat" => "P1_2019-05-10_09-18-07_Vis_SV_108.png",
+        "snapshot-dir" => "2019-05-10_E1_P1_2019-05-10_09-18-07_1/Vis_SV_108/0_0_0.png",
+        "snapshot-file" => "2019-05-10_E1_P1_2019-05-10_09-18-07_1/0_108_0.png",
+        _ => return None,
+    })
+}
+
 /// Which way the camera looked.
 #[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum View {
@@ -267,10 +277,15 @@ impl NamePatterns {
                 pattern: name.clone(),
             });
         }
+        // An example of each layout says more to a person than its regex; a
+        // site's own pattern has no example, so its regex is shown.
         let tried: Vec<String> = self
             .patterns
             .iter()
-            .map(|(n, re)| format!("{n} = /{}/", re.as_str()))
+            .map(|(n, re)| match preset_example(n) {
+                Some(e) => format!("{n} (e.g. {e})"),
+                None => format!("{n} = /{}/", re.as_str()),
+            })
             .collect();
         bail!(
             "file name {shown} matches none of the patterns tried: {}",
@@ -382,7 +397,12 @@ mod tests {
         assert!(err.contains("holiday/beach.png"), "{err}");
         for preset in PRESET_NAMES {
             assert!(err.contains(preset), "{err}");
+            // The example shown is one the layout reads, not a regex.
+            let example = preset_example(preset).unwrap();
+            assert!(err.contains(example) && !err.contains("(?P<"), "{err}");
+            assert_eq!(defaults().parse(Path::new(example)).unwrap().pattern, preset);
         }
+        assert!(err.len() < 300, "{} characters: {err}", err.len());
     }
 
     #[test]
@@ -488,7 +508,10 @@ mod tests {
             .parse(Path::new("EVIL\\x0aline_2018-04-02_10-00-00_Vis_SV_0.png"))
             .unwrap_err()
             .to_string();
-        assert!(e.contains("control characters") && e.contains("EVIL\\x0aline"), "{e}");
+        assert!(
+            e.contains("control characters") && e.contains("EVIL\\x0aline"),
+            "{e}"
+        );
         let e = p.parse(Path::new("x\u{1b}[2J.png")).unwrap_err().to_string();
         assert!(!e.contains('\u{1b}') && e.contains("\\u{1b}"), "{e}");
         // Quotes and spaces are data, not control characters.
