@@ -15,5 +15,6 @@ pub mod counting;
 pub mod memory;
 pub mod service;
 pub mod source;
+pub mod supervise;
 pub mod systemd;
 pub mod worker;

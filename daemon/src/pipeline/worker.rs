@@ -18,6 +18,7 @@ use tokio::sync::mpsc;
 use crate::config::Config;
 use crate::domain::names::NamePatterns;
 use crate::pipeline::counting::LeafCounter;
+use crate::pipeline::supervise::{panic_message, supervised, Lifeline};
 use crate::store::{FileFacts, Outcome, Precheck, Recorded, Store};
 
 /// One file to process.
@@ -44,6 +45,8 @@ pub struct Stats {
     pub skipped: AtomicU64,
     /// Errors of phyllo itself (database), since start; the file is retried by the next rescan.
     pub internal_errors: AtomicU64,
+    /// Worker threads that ended while the service runs ([`super::supervise`]).
+    pub dead_workers: AtomicUsize,
     /// Last image recorded.
     pub last: Mutex<Option<String>>,
 }
@@ -81,27 +84,35 @@ pub fn spawn_workers(
         let (rx, ctx) = (rx.clone(), ctx.clone());
         let h = std::thread::Builder::new()
             .name(format!("phyllo-worker-{i}"))
-            .spawn(move || loop {
-                // Holding the lock while waiting is fine: whoever holds it takes the next job.
-                let job = rx.lock().expect("receiver lock").blocking_recv();
-                let Some(job) = job else { break };
-                ctx.stats.queued.fetch_sub(1, Ordering::Relaxed);
-                if ctx.shutdown.load(Ordering::SeqCst) {
-                    // Handed back: not recorded, so the next start's scan finds it again.
-                    ctx.in_flight.lock().expect("in_flight lock").remove(&job.path);
-                    continue;
-                }
-                ctx.stats.busy.fetch_add(1, Ordering::Relaxed);
-                if let Err(e) = process(&mut store, &ctx, &job) {
-                    ctx.stats.internal_errors.fetch_add(1, Ordering::Relaxed);
-                    tracing::error!("{}: {e:#}", job.path.display());
-                }
-                ctx.stats.busy.fetch_sub(1, Ordering::Relaxed);
-                ctx.in_flight.lock().expect("in_flight lock").remove(&job.path);
+            .spawn(move || {
+                let _life = Lifeline(ctx.clone());
+                work_loop(&rx, &ctx, &mut store)
             })?;
         handles.push(h);
     }
     Ok(handles)
+}
+
+/// Takes jobs until the queue closes, each processed under supervision.
+fn work_loop(rx: &Mutex<mpsc::Receiver<Job>>, ctx: &WorkerCtx, store: &mut Store) {
+    loop {
+        // Holding the lock while waiting is fine: whoever holds it takes the next job.
+        let job = rx.lock().expect("receiver lock").blocking_recv();
+        let Some(job) = job else { break };
+        ctx.stats.queued.fetch_sub(1, Ordering::Relaxed);
+        if ctx.shutdown.load(Ordering::SeqCst) {
+            // Handed back: not recorded, so the next start's scan finds it again.
+            ctx.in_flight.lock().expect("in_flight lock").remove(&job.path);
+            continue;
+        }
+        ctx.stats.busy.fetch_add(1, Ordering::Relaxed);
+        if let Err(e) = supervised(store, ctx, &job, |store| process(store, ctx, &job)) {
+            ctx.stats.internal_errors.fetch_add(1, Ordering::Relaxed);
+            tracing::error!("{}: {e:#}", job.path.display());
+        }
+        ctx.stats.busy.fetch_sub(1, Ordering::Relaxed);
+        ctx.in_flight.lock().expect("in_flight lock").remove(&job.path);
+    }
 }
 
 /// Formats a file's mtime as stored in the database.
@@ -346,11 +357,7 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
                     )?
                 }
                 Err(panic) => {
-                    let what = panic
-                        .downcast_ref::<String>()
-                        .cloned()
-                        .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
-                        .unwrap_or_default();
+                    let what = panic_message(&*panic);
                     let error = format!("{}: counting panicked: {what}", job.path.display());
                     tracing::error!("{error}");
                     store.record(
