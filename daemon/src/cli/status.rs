@@ -1,9 +1,13 @@
 //! `phyllo status --config FILE [--json | --check]`.
 
+use std::collections::BTreeMap;
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use super::ConfigArg;
-use crate::store::Store;
+use crate::config::Config;
+use crate::ops::backup::Snapshot;
+use crate::store::{ClimateSummary, ImageCounts, LastImage, Store, TimelineSummary};
 
 /// Arguments of `phyllo status`.
 #[derive(Debug, clap::Args)]
@@ -214,56 +218,125 @@ fn service_state(svc: &std::collections::BTreeMap<String, String>) -> String {
     }
 }
 
+/// What `phyllo status` shows, read before anything is printed so that a
+/// database error prints nothing half-way.
+struct Report {
+    /// The service's self-report.
+    svc: BTreeMap<String, String>,
+    counts: ImageCounts,
+    timeline: TimelineSummary,
+    last: Option<LastImage>,
+    /// The newest failures: (path, error).
+    failures: Vec<(String, String)>,
+    /// Counts made with other settings than the service's (an upgrade since):
+    /// `phyllo recount` brings them in line.
+    other_settings: Option<i64>,
+    backup_dir: PathBuf,
+    /// An unreadable backup directory is shown, not fatal.
+    snapshots: anyhow::Result<Vec<Snapshot>>,
+    newest: Option<Snapshot>,
+    backup_age_hours: Option<i64>,
+    state_dir: PathBuf,
+    free: Option<u64>,
+    in_doubt: usize,
+    climate: Vec<ClimateSummary>,
+    /// Temperature logs ending well before their plants' newest session: (zone, hours).
+    behind: Vec<(String, f64)>,
+}
+
+impl Report {
+    /// Reads it from the store, the snapshots and the disk.
+    fn read(config: &Config, store: &Store) -> anyhow::Result<Report> {
+        let svc = store.service()?;
+        let counts = store.image_counts()?;
+        let timeline = store.timeline_summary()?;
+        let last = store.last_image()?;
+        let failures = store.recent_failures(5)?;
+        let other_settings = match svc.get("settings") {
+            Some(s) => Some(store.counts_with_other_settings(s)?),
+            None => None,
+        };
+        let backup_dir = config.backup_dir();
+        let snapshots = crate::ops::backup::list(&backup_dir);
+        let newest = snapshots.as_ref().ok().and_then(|s| s.last().cloned());
+        let backup_age_hours = newest.as_ref().map(|s| s.age_hours());
+        let state_dir = config.state_dir();
+        let free = crate::disk::free_bytes(&state_dir).ok();
+        let in_doubt = crate::domain::review::rank(&store.plant_timelines()?, None).len();
+        let climate = store.climate_summary()?;
+        let behind = store.temperature_logs_behind(STALE_NIGHTLY_HOURS as f64)?;
+        Ok(Report {
+            svc,
+            counts,
+            timeline,
+            last,
+            failures,
+            other_settings,
+            backup_dir,
+            snapshots,
+            newest,
+            backup_age_hours,
+            state_dir,
+            free,
+            in_doubt,
+            climate,
+            behind,
+        })
+    }
+}
+
 fn show(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let store = Store::open_read_only(&config.database)?;
-    let svc = store.service()?;
-    let counts = store.image_counts()?;
-    let timeline = store.timeline_summary()?;
-    let last = store.last_image()?;
-    let failures = store.recent_failures(5)?;
-    // Counts made with other settings than the service's (an upgrade since):
-    // `phyllo recount` brings them in line.
-    let other_settings = match svc.get("settings") {
-        Some(s) => Some(store.counts_with_other_settings(s)?),
-        None => None,
-    };
-    let backup_dir = config.backup_dir();
-    let snapshots = crate::ops::backup::list(&backup_dir);
-    let newest = snapshots.as_ref().ok().and_then(|s| s.last().cloned());
-    let backup_age_hours = newest.as_ref().map(|s| s.age_hours());
-    let state_dir = config.state_dir();
-    let free = crate::disk::free_bytes(&state_dir).ok();
-    let in_doubt = crate::domain::review::rank(&store.plant_timelines()?, None).len();
-    let climate = store.climate_summary()?;
-    let behind = store.temperature_logs_behind(STALE_NIGHTLY_HOURS as f64)?;
-    let get = |k: &str| svc.get(k).cloned().unwrap_or_else(|| "-".into());
-    let state = service_state(&svc);
+    let r = Report::read(&config, &store)?;
+    let state = service_state(&r.svc);
     if args.json {
-        let v = serde_json::json!({
-            "state": state,
-            "service": svc,
-            "images": counts,
-            "timeline": timeline,
-            "sessions_in_doubt": in_doubt,
-            "climate": climate,
-            "climate_behind_hours": behind.iter().cloned().collect::<std::collections::BTreeMap<String, f64>>(),
-            "last_image": last,
-            "recent_failures": failures,
-            "counts_with_other_settings": other_settings,
-            "free_bytes": free,
-            "export_age_hours": export_age_hours(&config),
-            "backup": {
-                "dir": backup_dir,
-                "snapshots": snapshots.as_ref().map(Vec::len).ok(),
-                "newest": newest,
-                "age_hours": backup_age_hours,
-                "error": snapshots.as_ref().err().map(|e| format!("{e:#}")),
-            },
-        });
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        println!("{}", serde_json::to_string_pretty(&json(&config, &r, &state))?);
         return Ok(());
     }
+    print_service(&config, &r, &state);
+    print_climate(&config, &r);
+    print_attention(&r);
+    print_backup(&r);
+    print_export(&config);
+    match &r.last {
+        Some(l) => println!("last:      {} ({}, {})", l.path, l.state, l.at),
+        None => println!("last:      -"),
+    }
+    for (path, err) in &r.failures {
+        println!("failed:    {path}: {err}");
+    }
+    Ok(())
+}
+
+/// `--json`: everything the text shows, for scripts.
+fn json(config: &Config, r: &Report, state: &str) -> serde_json::Value {
+    serde_json::json!({
+        "state": state,
+        "service": r.svc,
+        "images": r.counts,
+        "timeline": r.timeline,
+        "sessions_in_doubt": r.in_doubt,
+        "climate": r.climate,
+        "climate_behind_hours": r.behind.iter().cloned().collect::<BTreeMap<String, f64>>(),
+        "last_image": r.last,
+        "recent_failures": r.failures,
+        "counts_with_other_settings": r.other_settings,
+        "free_bytes": r.free,
+        "export_age_hours": export_age_hours(config),
+        "backup": {
+            "dir": r.backup_dir,
+            "snapshots": r.snapshots.as_ref().map(Vec::len).ok(),
+            "newest": r.newest,
+            "age_hours": r.backup_age_hours,
+            "error": r.snapshots.as_ref().err().map(|e| format!("{e:#}")),
+        },
+    })
+}
+
+/// The service, where it reads and writes, and what it has done.
+fn print_service(config: &Config, r: &Report, state: &str) {
+    let get = |k: &str| r.svc.get(k).cloned().unwrap_or_else(|| "-".into());
     println!(
         "service:   {state} (pid {}, since {})",
         get("pid"),
@@ -277,18 +350,24 @@ fn show(args: Args) -> anyhow::Result<()> {
         get("queued"),
         get("busy")
     );
+    let counts = &r.counts;
     println!(
         "images:    {} counted, {} duplicates, {} failed; {} imported counts; {} plants",
         counts.counted, counts.duplicate, counts.failed, counts.imported, counts.plants
     );
     println!(
         "timeline:  {} leaves dated; {} leaves lost on {} plants; fit {}",
-        timeline.events,
-        timeline.leaves_lost,
-        timeline.plants_with_lost_leaves,
-        timeline.settings.as_deref().unwrap_or("-")
+        r.timeline.events,
+        r.timeline.leaves_lost,
+        r.timeline.plants_with_lost_leaves,
+        r.timeline.settings.as_deref().unwrap_or("-")
     );
-    for c in &climate {
+}
+
+/// The temperature logs, and the zones whose plants they leave without
+/// degree-days (gaps, a log behind, none at all).
+fn print_climate(config: &Config, r: &Report) {
+    for c in &r.climate {
         println!(
             "climate:   {}{} temperatures from {} to {}; longest gap {:.1} h{}",
             if c.zone.is_empty() {
@@ -307,28 +386,36 @@ fn show(args: Args) -> anyhow::Result<()> {
             }
         );
     }
-    for (zone, hours) in &behind {
+    for (zone, hours) in &r.behind {
         println!("climate:   {}", log_behind(zone, *hours));
     }
     for zone in &config.timeline.zones {
-        if !climate.iter().any(|c| c.zone == zone.name) {
+        if !r.climate.iter().any(|c| c.zone == zone.name) {
             println!(
                 "climate:   zone {}: no temperatures yet (its plants get no phyllochron in degree-days)",
                 zone.name
             );
         }
     }
-    if in_doubt > 0 {
-        println!("review:    {in_doubt} plant sessions in doubt: `phyllo review` lists the most doubtful to count by hand");
+}
+
+/// What asks for an operator's hand: sessions in doubt, counts made with
+/// other settings, and the disk.
+fn print_attention(r: &Report) {
+    if r.in_doubt > 0 {
+        println!(
+            "review:    {} plant sessions in doubt: `phyllo review` lists the most doubtful to count by hand",
+            r.in_doubt
+        );
     }
-    match other_settings {
+    match r.other_settings {
         Some(0) => println!("settings:  every count made with the service's settings"),
         Some(n) => println!(
             "settings:  {n} counts made with other settings than the service's (an upgrade since?): `phyllo recount` counts them again"
         ),
         None => {}
     }
-    if let Some(free) = free {
+    if let Some(free) = r.free {
         let warn = if free < crate::disk::LOW_FREE_BYTES {
             " — low: counting fails when it runs out"
         } else {
@@ -337,17 +424,22 @@ fn show(args: Args) -> anyhow::Result<()> {
         println!(
             "disk:      {} free beside the database ({}){warn}",
             crate::disk::human(free),
-            state_dir.display()
+            r.state_dir.display()
         );
     }
-    match (&snapshots, &newest) {
+}
+
+/// The newest snapshot, or why there is none: a stale one means the nightly
+/// timer is not running.
+fn print_backup(r: &Report) {
+    match (&r.snapshots, &r.newest) {
         (Err(e), _) => println!("backup:    {e:#}"),
         (Ok(_), None) => println!(
             "backup:    no snapshot in {} (`phyllo backup`, or enable phyllo-backup.timer)",
-            backup_dir.display()
+            r.backup_dir.display()
         ),
         (Ok(all), Some(s)) => {
-            let age = backup_age_hours.unwrap_or(0);
+            let age = r.backup_age_hours.unwrap_or(0);
             let warn = if age > STALE_NIGHTLY_HOURS {
                 " — older than 2 days: is phyllo-backup.timer enabled?"
             } else {
@@ -358,11 +450,15 @@ fn show(args: Args) -> anyhow::Result<()> {
                 s.taken_at.format("%Y-%m-%d %H:%M"),
                 s.bytes as f64 / 1e6,
                 all.len(),
-                backup_dir.display()
+                r.backup_dir.display()
             );
         }
     }
-    match export_age_hours(&config) {
+}
+
+/// The nightly export's age: a stale one means its timer is not running.
+fn print_export(config: &Config) {
+    match export_age_hours(config) {
         Some(a) => println!(
             "export:    index.html written {a} h ago in {}{}",
             config.export_dir().display(),
@@ -377,14 +473,6 @@ fn show(args: Args) -> anyhow::Result<()> {
             config.export_dir().display()
         ),
     }
-    match last {
-        Some(l) => println!("last:      {} ({}, {})", l.path, l.state, l.at),
-        None => println!("last:      -"),
-    }
-    for (path, err) in failures {
-        println!("failed:    {path}: {err}");
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -61,45 +61,19 @@ pub async fn run(
     });
     let workers = spawn_workers(config.inference.workers, job_rx, ctx)?;
 
-    // Sources feed candidates into one channel; the intake is its only reader.
-    let (cand_tx, mut cand_rx) = mpsc::channel::<Candidate>(4096);
-    let filter = Filter::new(&config.drop_dir, &config.watch);
-    let filter = if config.watch.skip_top_views {
-        filter.skipping_top_views(NamePatterns::from_config(&config.names)?)
-    } else {
-        filter
-    };
-    let mut watcher = start_watch(&filter, &cand_tx);
+    let mut sources = Sources::start(&config)?;
     let intake_store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
     let mut intake = Intake::new(
-        filter.clone(),
+        sources.filter.clone(),
         &config.watch,
         intake_store,
         job_tx,
         in_flight,
         stats.clone(),
     );
-    let scanning = Arc::new(AtomicBool::new(false));
-    spawn_scan(&config, &filter, filter.root().to_path_buf(), &cand_tx, &scanning);
+    sources.scan_all(&config);
 
-    let started = now_utc();
-    status_store.set_service(&[
-        ("state", "running".into()),
-        ("pid", std::process::id().to_string()),
-        ("started_at", started.clone()),
-        ("model", model_id.clone()),
-        ("settings", settings.to_string()),
-        ("drop_dir", config.drop_dir.display().to_string()),
-        ("workers", config.inference.workers.to_string()),
-    ])?;
-    systemd::ready(&format!("watching {} with {model_id}", config.drop_dir.display()));
-    tracing::info!(
-        "phyllo serve: watching {} → {} (model {model_id}, {} workers)",
-        config.drop_dir.display(),
-        config.database.display(),
-        config.inference.workers
-    );
-
+    announce_running(&mut status_store, &config, &model_id, &settings)?;
     let state_dir = config.state_dir();
     let status_task = tokio::spawn(report_status(
         status_store,
@@ -108,48 +82,14 @@ pub async fn run(
         state_dir,
         shutdown.clone(),
     ));
-    let mut tick = tokio::time::interval(Duration::from_millis(config.watch.poll_ms.max(10)));
-    tick.set_missed_tick_behavior(MissedTickBehavior::Delay);
-    let rescan_every = Duration::from_secs(config.watch.rescan_secs.max(1));
-    let mut rescan = tokio::time::interval_at(tokio::time::Instant::now() + rescan_every, rescan_every);
-    rescan.set_missed_tick_behavior(MissedTickBehavior::Delay);
-    // A drop directory that is missing or was replaced is re-watched this often.
-    let mut rewatch = tokio::time::interval(Duration::from_secs(5));
-
-    let mut intake_shutdown = shutdown.clone();
-    loop {
-        tokio::select! {
-            _ = shutdown.wait_for(|s| *s) => break,
-            Some(c) = cand_rx.recv() => {
-                match intake.note(c) {
-                    Some(ScanRequest::Dir(d)) => scan_new_dir(&config, &filter, d, &cand_tx, &scanning),
-                    Some(ScanRequest::All) => spawn_scan(&config, &filter, filter.root().to_path_buf(), &cand_tx, &scanning),
-                    None => {}
-                }
-            }
-            _ = tick.tick() => intake.tick(&mut intake_shutdown).await,
-            _ = rescan.tick(), if config.watch.rescan_secs > 0 => {
-                spawn_scan(&config, &filter, filter.root().to_path_buf(), &cand_tx, &scanning);
-            }
-            _ = rewatch.tick() => {
-                if watcher.as_ref().is_none_or(|w| w.is_stale()) {
-                    drop(watcher.take());
-                    watcher = start_watch(&filter, &cand_tx);
-                    if watcher.is_some() {
-                        tracing::info!("drop directory {} (re)appeared, watching and scanning it", filter.root().display());
-                        spawn_scan(&config, &filter, filter.root().to_path_buf(), &cand_tx, &scanning);
-                    }
-                }
-            }
-        }
-    }
+    sources.feed_intake(&config, &mut intake, &mut shutdown).await;
 
     systemd::stopping("stopping: finishing in-flight images");
     tracing::info!(
         "shutting down: {} pending, finishing in-flight images",
         intake.pending()
     );
-    drop(watcher);
+    drop(sources.watcher.take());
     stop_workers.store(true, Ordering::SeqCst);
     // Dropping the intake drops the queue's sender: workers drain (handing back) and exit.
     drop(intake);
@@ -169,6 +109,128 @@ pub async fn run(
         stats.failed.load(Ordering::Relaxed)
     );
     Ok(())
+}
+
+/// Tells `phyllo status`, systemd and the journal that the service is up,
+/// with the model and settings its counts are made with.
+fn announce_running(
+    status_store: &mut Store,
+    config: &Config,
+    model_id: &str,
+    settings: &serde_json::Value,
+) -> anyhow::Result<()> {
+    status_store.set_service(&[
+        ("state", "running".into()),
+        ("pid", std::process::id().to_string()),
+        ("started_at", now_utc()),
+        ("model", model_id.to_string()),
+        ("settings", settings.to_string()),
+        ("drop_dir", config.drop_dir.display().to_string()),
+        ("workers", config.inference.workers.to_string()),
+    ])?;
+    systemd::ready(&format!("watching {} with {model_id}", config.drop_dir.display()));
+    tracing::info!(
+        "phyllo serve: watching {} → {} (model {model_id}, {} workers)",
+        config.drop_dir.display(),
+        config.database.display(),
+        config.inference.workers
+    );
+    Ok(())
+}
+
+/// The drop directory's sources: its watch and its scans feed candidates into
+/// one channel, whose only reader is the intake.
+struct Sources {
+    /// Which files under the drop directory are images to count.
+    filter: Filter,
+    tx: mpsc::Sender<Candidate>,
+    rx: mpsc::Receiver<Candidate>,
+    /// `None` while the drop directory is missing or the watch failed.
+    watcher: Option<Watch>,
+    /// Set while a scan of the whole drop directory runs ([`spawn_scan`]).
+    scanning: Arc<AtomicBool>,
+}
+
+impl Sources {
+    /// Starts watching the drop directory; scanning is left to the caller.
+    fn start(config: &Config) -> anyhow::Result<Sources> {
+        let (tx, rx) = mpsc::channel::<Candidate>(4096);
+        let filter = Filter::new(&config.drop_dir, &config.watch);
+        let filter = if config.watch.skip_top_views {
+            filter.skipping_top_views(NamePatterns::from_config(&config.names)?)
+        } else {
+            filter
+        };
+        let watcher = start_watch(&filter, &tx);
+        Ok(Sources {
+            filter,
+            tx,
+            rx,
+            watcher,
+            scanning: Arc::new(AtomicBool::new(false)),
+        })
+    }
+
+    /// Scans the whole drop directory, unless a scan of it is running.
+    fn scan_all(&self, config: &Config) {
+        spawn_scan(
+            config,
+            &self.filter,
+            self.filter.root().to_path_buf(),
+            &self.tx,
+            &self.scanning,
+        );
+    }
+
+    /// Hands candidates to the intake and ticks it, rescans and re-watches
+    /// the drop directory, until `shutdown`.
+    async fn feed_intake(
+        &mut self,
+        config: &Config,
+        intake: &mut Intake,
+        shutdown: &mut watch::Receiver<bool>,
+    ) {
+        let mut tick = tokio::time::interval(Duration::from_millis(config.watch.poll_ms.max(10)));
+        tick.set_missed_tick_behavior(MissedTickBehavior::Delay);
+        let rescan_every = Duration::from_secs(config.watch.rescan_secs.max(1));
+        let mut rescan = tokio::time::interval_at(tokio::time::Instant::now() + rescan_every, rescan_every);
+        rescan.set_missed_tick_behavior(MissedTickBehavior::Delay);
+        // A drop directory that is missing or was replaced is re-watched this often.
+        let mut rewatch = tokio::time::interval(Duration::from_secs(5));
+
+        let mut intake_shutdown = shutdown.clone();
+        loop {
+            tokio::select! {
+                _ = shutdown.wait_for(|s| *s) => break,
+                Some(c) = self.rx.recv() => {
+                    match intake.note(c) {
+                        Some(ScanRequest::Dir(d)) => scan_new_dir(config, &self.filter, d, &self.tx, &self.scanning),
+                        Some(ScanRequest::All) => self.scan_all(config),
+                        None => {}
+                    }
+                }
+                _ = tick.tick() => intake.tick(&mut intake_shutdown).await,
+                _ = rescan.tick(), if config.watch.rescan_secs > 0 => self.scan_all(config),
+                _ = rewatch.tick() => self.rewatch(config),
+            }
+        }
+    }
+
+    /// Watches the drop directory afresh when it is missing or was replaced,
+    /// and scans it once the watch is in place: files may have landed unseen.
+    fn rewatch(&mut self, config: &Config) {
+        if self.watcher.as_ref().is_none_or(|w| w.is_stale()) {
+            drop(self.watcher.take());
+            self.watcher = start_watch(&self.filter, &self.tx);
+            if self.watcher.is_some() {
+                tracing::info!(
+                    "drop directory {} (re)appeared, watching and scanning it",
+                    self.filter.root().display()
+                );
+                self.scan_all(config);
+            }
+        }
+    }
 }
 
 fn start_watch(filter: &Filter, tx: &mpsc::Sender<Candidate>) -> Option<Watch> {

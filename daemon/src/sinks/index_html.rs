@@ -39,6 +39,19 @@ pub struct Index {
 /// Renders the page.
 pub fn render(idx: &Index) -> String {
     let mut h = String::new();
+    page_head(&mut h, idx);
+    groups_section(&mut h, idx);
+    problems_section(&mut h, idx);
+    due_section(&mut h, idx);
+    review_section(&mut h, idx);
+    plants_section(&mut h, idx);
+    h.push_str("</body>\n</html>\n");
+    h
+}
+
+/// The document's head and style, when the export ran, the service's health
+/// and the CSV tables, so a reader knows how fresh the page is.
+fn page_head(h: &mut String, idx: &Index) {
     h.push_str(
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>phyllo: leaf counts</title>\n\
          <style>body{font-family:sans-serif;margin:2em;color:#222}table{border-collapse:collapse;font-size:90%}\
@@ -62,22 +75,31 @@ pub fn render(idx: &Index) -> String {
         .collect();
     h.push_str(&links.join(", "));
     h.push_str("</p>\n");
-    if let Some((head, rows)) = &idx.groups {
-        h.push_str("<h2>Groups</h2>\n");
-        if idx.unmatched > 0 {
-            h.push_str(&format!(
-                "<p>{} plants match no group pattern and are not grouped.</p>\n",
-                idx.unmatched
-            ));
-        }
-        table(&mut h, head, rows, |_, cell| text(cell).into_owned());
-        if let Some(png) = &idx.groups_plot {
-            h.push_str(&format!(
-                "<p><img src=\"{}\" alt=\"leaves emerged per group\"></p>\n",
-                attr(png)
-            ));
-        }
+}
+
+/// The group summaries and their curves, when groups are configured.
+fn groups_section(h: &mut String, idx: &Index) {
+    let Some((head, rows)) = &idx.groups else {
+        return;
+    };
+    h.push_str("<h2>Groups</h2>\n");
+    if idx.unmatched > 0 {
+        h.push_str(&format!(
+            "<p>{} plants match no group pattern and are not grouped.</p>\n",
+            idx.unmatched
+        ));
     }
+    table(h, head, rows, |_, cell| text(cell).into_owned());
+    if let Some(png) = &idx.groups_plot {
+        h.push_str(&format!(
+            "<p><img src=\"{}\" alt=\"leaves emerged per group\"></p>\n",
+            attr(png)
+        ));
+    }
+}
+
+/// The images that could not be counted, newest first, when there are any.
+fn problems_section(h: &mut String, idx: &Index) {
     let (failed, newest) = &idx.failed;
     if *failed > 0 {
         h.push_str(&format!(
@@ -86,15 +108,22 @@ pub fn render(idx: &Index) -> String {
             newest.len()
         ));
         let rows: Vec<Vec<String>> = newest.iter().map(|(p, e)| vec![p.clone(), e.clone()]).collect();
-        table(&mut h, &["image".into(), "error".into()], &rows, |_, cell| {
+        table(h, &["image".into(), "error".into()], &rows, |_, cell| {
             text(cell).into_owned()
         });
     }
-    // A table's first column, the plant, links to its plot.
-    let plant_linked = |col: usize, cell: &str| match (col, idx.plots.get(cell)) {
+}
+
+/// A table's first column, the plant, links to its plot.
+fn plant_linked(idx: &Index) -> impl Fn(usize, &str) -> String + '_ {
+    move |col: usize, cell: &str| match (col, idx.plots.get(cell)) {
         (0, Some(png)) => format!("<a href=\"plots/{}\">{}</a>", attr(png), text(cell)),
         _ => text(cell).into_owned(),
-    };
+    }
+}
+
+/// The plants whose next leaf is due or overdue ([`leaves_due`]), when any is.
+fn due_section(h: &mut String, idx: &Index) {
     let due = leaves_due(&idx.plants);
     if !due.rows.is_empty() {
         h.push_str(&format!(
@@ -105,7 +134,7 @@ pub fn render(idx: &Index) -> String {
             text(&due.today)
         ));
         table(
-            &mut h,
+            h,
             &[
                 "plant".into(),
                 "next leaf".into(),
@@ -114,9 +143,13 @@ pub fn render(idx: &Index) -> String {
                 "".into(),
             ],
             &due.rows,
-            plant_linked,
+            plant_linked(idx),
         );
     }
+}
+
+/// The sessions most in doubt, for a person to count by hand, when any is.
+fn review_section(h: &mut String, idx: &Index) {
     let (in_doubt, sheet) = &idx.review;
     if !sheet.is_empty() {
         h.push_str(&format!(
@@ -137,12 +170,17 @@ pub fn render(idx: &Index) -> String {
             .iter()
             .map(|r| shown.iter().map(|&i| r[i].clone()).collect())
             .collect();
-        table(&mut h, &head, &rows, plant_linked);
+        table(h, &head, &rows, plant_linked(idx));
     }
+}
+
+/// Every plant's summary, and where its newest leaf emerged when drawn.
+fn plants_section(h: &mut String, idx: &Index) {
     h.push_str("<h2>Plants</h2>\n");
     let (head, rows) = &idx.plants;
+    let linked = plant_linked(idx);
     if idx.sites.is_empty() {
-        table(&mut h, head, rows, plant_linked);
+        table(h, head, rows, linked);
     } else {
         // One more column: the newest leaf, linked to where it emerged.
         let mut head = head.clone();
@@ -156,16 +194,14 @@ pub fn render(idx: &Index) -> String {
                 r
             })
             .collect();
-        table(&mut h, &head, &rows, |col, cell| {
+        table(h, &head, &rows, |col, cell| {
             match (col == n, idx.sites.get(cell)) {
                 (true, Some((leaf, png))) => format!("<a href=\"sites/{}\">leaf {leaf}</a>", attr(png)),
                 (true, None) => String::new(),
-                _ => plant_linked(col, cell),
+                _ => linked(col, cell),
             }
         });
     }
-    h.push_str("</body>\n</html>\n");
-    h
 }
 
 fn table(h: &mut String, head: &[String], rows: &[Vec<String>], cell: impl Fn(usize, &str) -> String) {

@@ -7,6 +7,8 @@
 use std::path::Path;
 
 use anyhow::{anyhow, Context};
+use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
@@ -26,6 +28,11 @@ pub enum TimeAxis<'a> {
 
 pub use phyllo_evaluation::plots::register_font;
 
+/// A timeline chart: x in days or degree-days since the first session, y in leaves.
+type Chart<'a, 'b> = ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+/// What drawing into the PNG can fail with (one message for all, made by [`plot`]).
+type DrawError = DrawingAreaErrorKind<<BitMapBackend<'static> as DrawingBackend>::ErrorType>;
+
 /// Draws the timeline: per-view counts (grey; top views hollow; people's
 /// counts black crosses), fused counts (blue; ringed orange where the
 /// session is in doubt, [`crate::domain::review`]), leaves emerged (red steps), living leaves (green), emergence events
@@ -38,88 +45,136 @@ pub fn plot(t: &PlantTimeline, out: &Path, axis: TimeAxis) -> anyhow::Result<()>
         .sessions
         .first()
         .ok_or_else(|| anyhow!("plant {} has no sessions to plot", t.plant))?;
-    let t0 = parse_iso(&first.start)?;
-    let day = |s: &str| -> anyhow::Result<f64> {
-        let at = parse_iso(s)?;
-        match axis {
-            TimeAxis::Days => Ok((at - t0).num_milliseconds() as f64 / 86_400_000.0),
-            TimeAxis::DegreeDays(clock) => clock.between(t0, at).ok_or_else(|| {
-                anyhow!(
-                    "plant {}: the temperature log does not cover {} to {s} (outside it, or a hole of over {} h): \
-                     plot it in days",
-                    t.plant,
-                    first.start,
-                    crate::domain::thermal::MAX_GAP_HOURS
-                )
-            }),
-        }
-    };
-    let mut xs = Vec::new();
-    let mut ymax: f64 = 1.0;
-    for s in &t.sessions {
-        xs.push(day(&s.start)?);
-        ymax = ymax.max(
-            s.views
-                .values()
-                .cloned()
-                .fold(s.fused.max(s.leaves_emerged), f64::max),
-        );
-    }
-    // Every x before drawing starts: an error must not leave a half-drawn file.
-    let event_xs = t
-        .events
-        .iter()
-        .map(|(_, at, _)| day(at))
-        .collect::<anyhow::Result<Vec<f64>>>()?;
-    // The next leaf's forecast, in days only: the log holds no future temperatures.
-    let next = match (axis, &t.next_leaf) {
-        (TimeAxis::Days, Some(n)) => Some((n.leaf, day(&n.expected)?)),
-        _ => None,
-    };
-    let ymax = ymax.max(next.map_or(0.0, |n| f64::from(n.0) + 0.5));
-    let xmax = xs
-        .last()
-        .cloned()
-        .unwrap_or(0.0)
-        .max(next.map_or(0.0, |n| n.1))
-        .max(1.0);
-    // Half a day's margin either side, in the axis's own unit.
-    let pad = match axis {
-        TimeAxis::Days => 0.5,
-        TimeAxis::DegreeDays(_) => 0.02 * xmax,
-    };
+    let at = Layout::of(t, &first.start, axis)?;
     let root = BitMapBackend::new(out, (1000, 600)).into_drawing_area();
     let err = |e: DrawingAreaErrorKind<_>| anyhow!("drawing {}: {e:?}", out.display());
     root.fill(&WHITE).map_err(err)?;
+    let mut chart = chart(&root, t, &first.start, axis, &at).map_err(err)?;
+    draw_counts(&mut chart, t, &at.xs).map_err(err)?;
+    draw_fits(&mut chart, t, &at.xs).map_err(err)?;
+    draw_events(&mut chart, t, &at).map_err(err)?;
+    draw_legend(&mut chart).map_err(err)?;
+    root.present()
+        .with_context(|| format!("writing {}", out.display()))?;
+    Ok(())
+}
+
+/// Where a plot's points go and how far its axes reach.
+struct Layout {
+    /// Each session's x.
+    xs: Vec<f64>,
+    /// Each emergence event's x.
+    event_xs: Vec<f64>,
+    /// The next leaf's number and expected x, in days only: the log holds no
+    /// future temperatures.
+    next: Option<(u32, f64)>,
+    /// The x axis's last value before its margin.
+    xmax: f64,
+    /// The y axis's highest count.
+    ymax: f64,
+}
+
+impl Layout {
+    /// Every x before drawing starts: an error must not leave a half-drawn file.
+    fn of(t: &PlantTimeline, first: &str, axis: TimeAxis) -> anyhow::Result<Layout> {
+        let t0 = parse_iso(first)?;
+        let day = |s: &str| -> anyhow::Result<f64> {
+            let at = parse_iso(s)?;
+            match axis {
+                TimeAxis::Days => Ok((at - t0).num_milliseconds() as f64 / 86_400_000.0),
+                TimeAxis::DegreeDays(clock) => clock.between(t0, at).ok_or_else(|| {
+                    anyhow!(
+                        "plant {}: the temperature log does not cover {} to {s} (outside it, or a hole of over {} h): \
+                         plot it in days",
+                        t.plant,
+                        first,
+                        crate::domain::thermal::MAX_GAP_HOURS
+                    )
+                }),
+            }
+        };
+        let mut xs = Vec::new();
+        let mut ymax: f64 = 1.0;
+        for s in &t.sessions {
+            xs.push(day(&s.start)?);
+            ymax = ymax.max(
+                s.views
+                    .values()
+                    .cloned()
+                    .fold(s.fused.max(s.leaves_emerged), f64::max),
+            );
+        }
+        let event_xs = t
+            .events
+            .iter()
+            .map(|(_, at, _)| day(at))
+            .collect::<anyhow::Result<Vec<f64>>>()?;
+        let next = match (axis, &t.next_leaf) {
+            (TimeAxis::Days, Some(n)) => Some((n.leaf, day(&n.expected)?)),
+            _ => None,
+        };
+        let ymax = ymax.max(next.map_or(0.0, |n| f64::from(n.0) + 0.5));
+        let xmax = xs
+            .last()
+            .cloned()
+            .unwrap_or(0.0)
+            .max(next.map_or(0.0, |n| n.1))
+            .max(1.0);
+        Ok(Layout {
+            xs,
+            event_xs,
+            next,
+            xmax,
+            ymax,
+        })
+    }
+}
+
+/// The chart's caption, axes and grid, before any series.
+fn chart<'a, 'b>(
+    root: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    t: &PlantTimeline,
+    first: &str,
+    axis: TimeAxis,
+    at: &Layout,
+) -> Result<Chart<'a, 'b>, DrawError> {
+    // Half a day's margin either side, in the axis's own unit.
+    let pad = match axis {
+        TimeAxis::Days => 0.5,
+        TimeAxis::DegreeDays(_) => 0.02 * at.xmax,
+    };
     let ph = match (t.phyllochron_days, t.phyllochron_cd) {
         (Some(p), Some(cd)) => format!("{p:.2} days/leaf, {cd:.1} °Cd/leaf"),
         (Some(p), None) => format!("{p:.2} days/leaf"),
         (None, _) => "n/a".into(),
     };
-    let mut chart = ChartBuilder::on(&root)
+    let mut chart = ChartBuilder::on(root)
         .caption(format!("{} — phyllochron {ph}", t.plant), ("sans-serif", 24))
         .margin(15)
         .x_label_area_size(40)
         .y_label_area_size(50)
-        .build_cartesian_2d(-pad..xmax + pad, 0.0..(ymax + 1.5).ceil())
-        .map_err(err)?;
+        .build_cartesian_2d(-pad..at.xmax + pad, 0.0..(at.ymax + 1.5).ceil())?;
     chart
         .configure_mesh()
         .x_desc(match axis {
-            TimeAxis::Days => format!("days since {}", &first.start[..10]),
+            TimeAxis::Days => format!("days since {}", &first[..10]),
             TimeAxis::DegreeDays(c) => {
-                format!("degree-days above {} °C since {}", c.base(), &first.start[..10])
+                format!("degree-days above {} °C since {}", c.base(), &first[..10])
             }
         })
         .y_desc("leaves")
         .label_style(("sans-serif", 14))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
+    Ok(chart)
+}
+
+/// The counts of each session: per view, fused, in doubt, and by people.
+fn draw_counts(chart: &mut Chart<'_, '_>, t: &PlantTimeline, xs: &[f64]) -> Result<(), DrawError> {
     // Side and top views apart: the top view sees a few leaves fewer, and its
     // counts drawn like the side views' would read as a spread of the count.
     let grey = RGBColor(150, 150, 150);
     let (mut side, mut top, mut people) = (Vec::new(), Vec::new(), Vec::new());
-    for (s, &x) in t.sessions.iter().zip(&xs) {
+    for (s, &x) in t.sessions.iter().zip(xs) {
         for (v, &c) in &s.views {
             let view = crate::domain::names::View::parse(v);
             let points = if view.is_top() {
@@ -133,25 +188,34 @@ pub fn plot(t: &PlantTimeline, out: &Path, axis: TimeAxis) -> anyhow::Result<()>
         }
     }
     chart
-        .draw_series(side.iter().map(|&p| Circle::new(p, 3, grey.filled())))
-        .map_err(err)?
+        .draw_series(side.iter().map(|&p| Circle::new(p, 3, grey.filled())))?
         .label("side view")
         .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.filled()));
     if !top.is_empty() {
         chart
-            .draw_series(top.iter().map(|&p| Circle::new(p, 3, grey.stroke_width(1))))
-            .map_err(err)?
+            .draw_series(top.iter().map(|&p| Circle::new(p, 3, grey.stroke_width(1))))?
             .label("top view")
             .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.stroke_width(1)));
     }
-    let fused: Vec<(f64, f64)> = t.sessions.iter().zip(&xs).map(|(s, &x)| (x, s.fused)).collect();
+    let fused: Vec<(f64, f64)> = t.sessions.iter().zip(xs).map(|(s, &x)| (x, s.fused)).collect();
     chart
-        .draw_series(fused.iter().map(|&p| Circle::new(p, 5, BLUE.filled())))
-        .map_err(err)?
+        .draw_series(fused.iter().map(|&p| Circle::new(p, 5, BLUE.filled())))?
         .label("fused")
         .legend(|(x, y)| Circle::new((x + 10, y), 5, BLUE.filled()));
-    // Rings round the sessions `phyllo review` lists, so a reader knows which
-    // days the timeline is least sure of.
+    draw_doubt(chart, t, xs)?;
+    // Over the fused dot it sets, so the correction shows.
+    if !people.is_empty() {
+        chart
+            .draw_series(people.iter().map(|&p| Cross::new(p, 6, BLACK.stroke_width(2))))?
+            .label("person's count (overrides the views)")
+            .legend(|(x, y)| Cross::new((x + 10, y), 6, BLACK.stroke_width(2)));
+    }
+    Ok(())
+}
+
+/// Rings round the sessions `phyllo review` lists, so a reader knows which
+/// days the timeline is least sure of.
+fn draw_doubt(chart: &mut Chart<'_, '_>, t: &PlantTimeline, xs: &[f64]) -> Result<(), DrawError> {
     let doubtful: std::collections::BTreeSet<String> =
         crate::domain::review::rank(std::slice::from_ref(t), None)
             .into_iter()
@@ -163,68 +227,56 @@ pub fn plot(t: &PlantTimeline, out: &Path, axis: TimeAxis) -> anyhow::Result<()>
             .draw_series(
                 t.sessions
                     .iter()
-                    .zip(&xs)
+                    .zip(xs)
                     .filter(|(s, _)| doubtful.contains(&s.start))
                     .map(|(s, &x)| Circle::new((x, s.fused), 9, orange.stroke_width(2))),
-            )
-            .map_err(err)?
+            )?
             .label("in doubt (phyllo review)")
             .legend(move |(x, y)| Circle::new((x + 10, y), 7, orange.stroke_width(2)));
     }
-    // Over the fused dot it sets, so the correction shows.
-    if !people.is_empty() {
-        chart
-            .draw_series(people.iter().map(|&p| Cross::new(p, 6, BLACK.stroke_width(2))))
-            .map_err(err)?
-            .label("person's count (overrides the views)")
-            .legend(|(x, y)| Cross::new((x + 10, y), 6, BLACK.stroke_width(2)));
-    }
-    let living: Vec<(f64, f64)> = t.sessions.iter().zip(&xs).map(|(s, &x)| (x, s.living)).collect();
+    Ok(())
+}
+
+/// The timeline's fitted lines: living leaves, leaves emerged and, once a
+/// plant has lost one, leaves lost.
+fn draw_fits(chart: &mut Chart<'_, '_>, t: &PlantTimeline, xs: &[f64]) -> Result<(), DrawError> {
+    let living: Vec<(f64, f64)> = t.sessions.iter().zip(xs).map(|(s, &x)| (x, s.living)).collect();
     chart
-        .draw_series(LineSeries::new(living, GREEN.stroke_width(2)))
-        .map_err(err)?
+        .draw_series(LineSeries::new(living, GREEN.stroke_width(2)))?
         .label("living (smoothed)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], GREEN.stroke_width(2)));
     chart
         .draw_series(LineSeries::new(
-            steps(&xs, t.sessions.iter().map(|s| s.leaves_emerged)),
+            steps(xs, t.sessions.iter().map(|s| s.leaves_emerged)),
             RED.stroke_width(3),
-        ))
-        .map_err(err)?
+        ))?
         .label("leaves emerged (isotonic fit)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
     if t.sessions.iter().any(|s| s.leaves_lost > 0.0) {
         let brown = RGBColor(140, 90, 40);
         chart
             .draw_series(LineSeries::new(
-                steps(&xs, t.sessions.iter().map(|s| s.leaves_lost)),
+                steps(xs, t.sessions.iter().map(|s| s.leaves_lost)),
                 brown.stroke_width(2),
-            ))
-            .map_err(err)?
+            ))?
             .label("leaves lost (dead)")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], brown.stroke_width(2)));
     }
-    for ((leaf, _, _), &x) in t.events.iter().zip(&event_xs) {
+    Ok(())
+}
+
+/// A tick at each dated leaf, and a paler one where the next is expected.
+fn draw_events(chart: &mut Chart<'_, '_>, t: &PlantTimeline, at: &Layout) -> Result<(), DrawError> {
+    for ((leaf, _, _), &x) in t.events.iter().zip(&at.event_xs) {
         let y = *leaf as f64;
-        chart
-            .draw_series(std::iter::once(PathElement::new(
-                vec![(x, y - 0.4), (x, y + 0.4)],
-                RED.stroke_width(2),
-            )))
-            .map_err(err)?;
+        chart.draw_series(std::iter::once(PathElement::new(
+            vec![(x, y - 0.4), (x, y + 0.4)],
+            RED.stroke_width(2),
+        )))?;
         // The leaf's number above its tick, so a reader sees which leaf came when.
-        chart
-            .draw_series(std::iter::once(Text::new(
-                leaf.to_string(),
-                (x, y + 0.75),
-                ("sans-serif", 13)
-                    .into_font()
-                    .color(&RED)
-                    .pos(Pos::new(HPos::Center, VPos::Bottom)),
-            )))
-            .map_err(err)?;
+        chart.draw_series(std::iter::once(leaf_number(leaf.to_string(), (x, y), &RED)))?;
     }
-    if let Some((leaf, x)) = next {
+    if let Some((leaf, x)) = at.next {
         // Drawn apart from the dated leaves: thin, and its number asked.
         let y = f64::from(leaf);
         let pale = RGBColor(230, 120, 120);
@@ -232,27 +284,26 @@ pub fn plot(t: &PlantTimeline, out: &Path, axis: TimeAxis) -> anyhow::Result<()>
             .draw_series(std::iter::once(PathElement::new(
                 vec![(x, y - 0.4), (x, y + 0.4)],
                 pale.stroke_width(1),
-            )))
-            .map_err(err)?
+            )))?
             .label("next leaf expected")
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x + 10, y - 6), (x + 10, y + 6)], pale.stroke_width(1))
             });
-        chart
-            .draw_series(std::iter::once(Text::new(
-                format!("{leaf}?"),
-                (x, y + 0.75),
-                ("sans-serif", 13)
-                    .into_font()
-                    .color(&pale)
-                    .pos(Pos::new(HPos::Center, VPos::Bottom)),
-            )))
-            .map_err(err)?;
+        chart.draw_series(std::iter::once(leaf_number(format!("{leaf}?"), (x, y), &pale)))?;
     }
-    draw_legend(&mut chart).map_err(err)?;
-    root.present()
-        .with_context(|| format!("writing {}", out.display()))?;
     Ok(())
+}
+
+/// A leaf's number centred above its tick at `(x, y)`.
+fn leaf_number<'a>(label: String, (x, y): (f64, f64), color: &RGBColor) -> Text<'a, (f64, f64), String> {
+    Text::new(
+        label,
+        (x, y + 0.75),
+        ("sans-serif", 13)
+            .into_font()
+            .color(color)
+            .pos(Pos::new(HPos::Center, VPos::Bottom)),
+    )
 }
 
 /// The legend of every phyllo plot: upper left, on a translucent white box.

@@ -49,7 +49,7 @@ use crate::domain::timeline::TimelineParams;
 use derive::Fit;
 
 pub use crate::domain::plant::{LeafSiteRow, NextLeafRow, PlantTimeline, SessionRow};
-pub use queries::{ClimateSummary, FeedRow, ImageCounts, LastImage};
+pub use queries::{ClimateSummary, FeedRow, ImageCounts, LastImage, TimelineSummary};
 
 /// Formats a facility time the way the database and exports store it.
 pub fn iso(t: NaiveDateTime) -> String {
