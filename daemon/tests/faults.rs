@@ -430,7 +430,8 @@ fn disk_full_on_state_dir_then_recovers() {
 
 /// Links out of the drop directory are never followed: a link to a file
 /// outside, a link to a directory outside (a whole tree of images there), a
-/// link inside that points inside (followed, counted once as a duplicate).
+/// link inside that points inside (followed; under another plant's name it is
+/// that plant's observation, with the count made once reused).
 /// Also a source-level review: the daemon never spawns a process.
 #[test]
 fn nothing_leaves_the_drop_directory() {
@@ -482,11 +483,19 @@ fn nothing_leaves_the_drop_directory() {
             "{l}: {r:?}"
         );
     }
-    // The link inside is followed: the content is counted once, under whichever
-    // of the two names came first, and the other is its duplicate.
+    // The link inside is followed. Its name gives another plant, so it is an
+    // observation of that plant (docs/daemon.md, "An image's identity"): both
+    // names are counted, and the model ran once, its count reused for the other.
     let mut pair = [state(&inside), state(&link_in)].concat();
     pair.sort();
-    assert_eq!(pair, vec!["counted|∅".to_string(), "duplicate|∅".to_string()]);
+    assert_eq!(pair, vec!["counted|∅".to_string(), "counted|∅".to_string()]);
+    assert_eq!(
+        site.q(&format!(
+            "SELECT COUNT(*) FROM observations o JOIN images i ON i.id = o.image_id
+             WHERE i.path IN ('{inside}', '{link_in}')"
+        )),
+        2
+    );
     assert_eq!(
         site.q("SELECT COUNT(*) FROM images WHERE path LIKE 'linked-dir/%'"),
         0,
@@ -586,4 +595,29 @@ fn deleted_overwritten_and_recreated() {
     assert!(d.term().success());
     assert_eq!(integrity(&site.db), "ok");
     assert!(!site.log_text().contains("ERROR"), "{}", site.log_text());
+}
+
+/// The database deleted under a running service: it stops with an error
+/// naming the file and a non-zero exit that systemd restarts, instead of
+/// counting into an unlinked file that a restart would lose.
+#[test]
+fn a_database_deleted_while_running_stops_the_service_loudly() {
+    let site = Site::new("", "");
+    let mut d = site.serve();
+    site.wait_for("the service to start", Duration::from_secs(60), || {
+        site.q("SELECT COUNT(*) FROM service WHERE key = 'state' AND value = 'running'") == 1
+    });
+    std::fs::remove_file(&site.db).unwrap();
+    let status = d.exited_within(Duration::from_secs(30));
+    let log = site.log_text();
+    let status =
+        status.unwrap_or_else(|| panic!("still running 30 s after its database was deleted:\n{log}"));
+    assert!(!status.success(), "{status:?}");
+    assert!(
+        log.contains(&format!(
+            "database {} was deleted while the service ran",
+            site.db.display()
+        )),
+        "{log}"
+    );
 }

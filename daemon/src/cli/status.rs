@@ -54,6 +54,15 @@ pub struct Health {
     pub quiet_hours: Option<f64>,
     /// `[watch] quiet_hours`: longer without an image warns; 0 never.
     pub quiet_limit_hours: f64,
+    /// What is wrong with the drop directory (missing, not a directory,
+    /// unreadable), if anything.
+    pub drop_dir_problem: Option<String>,
+    /// The running service writes another file than the one at the
+    /// database's path now (it was deleted or replaced under it).
+    pub database_replaced: bool,
+    /// Counted images whose bytes equal an earlier counted image's under
+    /// another name (docs/daemon.md, "An image's identity").
+    pub shared_bytes: i64,
 }
 
 /// The findings, worst first; none means OK.
@@ -61,6 +70,29 @@ pub fn findings(h: &Health) -> Vec<(Level, String)> {
     let mut out = Vec::new();
     if h.state != "running" {
         out.push((Level::Critical, format!("service {}", h.state)));
+    }
+    if let Some(p) = &h.drop_dir_problem {
+        out.push((Level::Critical, p.clone()));
+    }
+    if h.database_replaced {
+        out.push((
+            Level::Critical,
+            "the database is not the file the service opened (deleted or replaced under it)".into(),
+        ));
+    }
+    if h.shared_bytes > 0 {
+        out.push((
+            Level::Warning,
+            format!(
+                "{} {} the bytes of another counted image under another name (copied or renamed?)",
+                h.shared_bytes,
+                if h.shared_bytes == 1 {
+                    "image has"
+                } else {
+                    "images have"
+                }
+            ),
+        ));
     }
     match h.free {
         Some(f) if f < crate::disk::SNAPSHOT_RESERVE_BYTES => out.push((
@@ -182,7 +214,29 @@ pub fn health(config: &crate::config::Config, store: &Store) -> anyhow::Result<H
         logs_behind: store.temperature_logs_behind(STALE_NIGHTLY_HOURS as f64)?,
         quiet_hours: store.hours_since_newest_image()?,
         quiet_limit_hours: config.watch.quiet_hours,
+        drop_dir_problem: drop_dir_problem(&config.drop_dir),
+        database_replaced: svc.get("state").is_some_and(|s| s == "running")
+            && svc.get("database_identity").is_some_and(|opened| {
+                crate::pipeline::health::DatabaseIdentity::of(&config.database)
+                    .map_or(true, |now| &now.text() != opened)
+            }),
+        shared_bytes: store.images_sharing_bytes()?,
     })
+}
+
+/// What keeps the service from seeing new images in `dir`, if anything.
+fn drop_dir_problem(dir: &std::path::Path) -> Option<String> {
+    let shown = dir.display();
+    match std::fs::metadata(dir) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            Some(format!("drop directory {shown} is missing (not mounted?)"))
+        }
+        Err(e) => Some(format!("drop directory {shown}: {e}")),
+        Ok(m) if !m.is_dir() => Some(format!("drop directory {shown} is not a directory")),
+        Ok(_) => std::fs::read_dir(dir)
+            .err()
+            .map(|e| format!("drop directory {shown} cannot be read: {e}")),
+    }
 }
 
 /// Hours since the nightly export wrote its page, `None` when it never has.
@@ -492,6 +546,32 @@ mod tests {
     #[test]
     fn a_healthy_site_is_ok() {
         assert_eq!(check_line(&findings(&healthy())), ("phyllo OK".into(), 0));
+    }
+
+    #[test]
+    fn a_missing_or_wrong_drop_directory_and_a_replaced_database_are_critical() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("drop");
+        assert!(drop_dir_problem(&missing).unwrap().contains("is missing"));
+        std::fs::write(&missing, b"").unwrap();
+        assert!(drop_dir_problem(&missing).unwrap().contains("is not a directory"));
+        std::fs::remove_file(&missing).unwrap();
+        std::fs::create_dir(&missing).unwrap();
+        assert_eq!(drop_dir_problem(&missing), None);
+        let h = Health {
+            drop_dir_problem: Some("drop directory /srv/drop is missing (not mounted?)".into()),
+            database_replaced: true,
+            shared_bytes: 2,
+            ..healthy()
+        };
+        let (line, code) = check_line(&findings(&h));
+        assert_eq!(code, 2, "{line}");
+        assert!(
+            line.starts_with("phyllo CRITICAL: drop directory /srv/drop is missing")
+                && line.contains("not the file the service opened")
+                && line.contains("2 images have the bytes of another counted image"),
+            "{line}"
+        );
     }
 
     #[test]

@@ -12,6 +12,8 @@
 //! See `docs/ARCHITECTURE.md`.
 
 pub mod counting;
+pub mod health;
+pub mod job;
 pub mod memory;
 pub mod service;
 pub mod source;

@@ -20,6 +20,7 @@ use tokio::time::MissedTickBehavior;
 use crate::config::Config;
 use crate::domain::names::NamePatterns;
 use crate::pipeline::counting::LeafCounter;
+use crate::pipeline::health::{self, DatabaseIdentity};
 use crate::pipeline::source::intake::{Intake, ScanRequest};
 use crate::pipeline::source::watch::Watch;
 use crate::pipeline::source::{scan, Candidate, Filter};
@@ -73,11 +74,12 @@ pub async fn run(
     );
     sources.scan_all(&config);
 
-    announce_running(&mut status_store, &config, &model_id, &settings)?;
+    let db = DatabaseIdentity::of(&config.database)?;
+    announce_running(&mut status_store, &config, &model_id, &settings, &db)?;
     let state_dir = config.state_dir();
     let status_task = tokio::spawn(report_status(
         status_store,
-        stats.clone(),
+        (stats.clone(), db),
         config.feed.keep(),
         state_dir,
         shutdown.clone(),
@@ -118,8 +120,10 @@ fn announce_running(
     config: &Config,
     model_id: &str,
     settings: &serde_json::Value,
+    db: &DatabaseIdentity,
 ) -> anyhow::Result<()> {
     status_store.set_service(&[
+        ("database_identity", db.text()),
         ("state", "running".into()),
         ("pid", std::process::id().to_string()),
         ("started_at", now_utc()),
@@ -342,12 +346,22 @@ async fn prune_feed(mut store: Store, keep: Duration) -> Store {
     }
 }
 
+/// Ends the process at once with [`health::EXIT_UNHEALTHY`], telling the
+/// journal, systemd and (where it can) `phyllo status` why: a graceful stop
+/// would go on writing into a database that is gone, or with workers missing.
+fn stop_unhealthy(store: &mut Store, why: &str) -> ! {
+    tracing::error!("stopping: {why}; systemd restarts the service");
+    systemd::status(&format!("FAILED: {why}"));
+    let _ = store.set_service(&[("state", format!("failed: {why}")), ("stopped_at", now_utc())]);
+    std::process::exit(health::EXIT_UNHEALTHY)
+}
+
 /// Writes the self-report for `phyllo status`, the systemd status line and
 /// the watchdog ping, and prunes the feed to `keep_feed`, until shutdown.
 /// Returns the store for the final report.
 async fn report_status(
     mut store: Store,
-    stats: Arc<Stats>,
+    (stats, db): (Arc<Stats>, DatabaseIdentity),
     keep_feed: Option<Duration>,
     state_dir: std::path::PathBuf,
     mut shutdown: watch::Receiver<bool>,
@@ -373,6 +387,9 @@ async fn report_status(
         if let Some(keep) = prune_now {
             store = prune_feed(store, keep).await;
             continue;
+        }
+        if let Some(why) = health::unhealthy(&db, &stats) {
+            stop_unhealthy(&mut store, &why);
         }
         let queued = stats.queued.load(Ordering::Relaxed);
         let busy = stats.busy.load(Ordering::Relaxed);

@@ -2,7 +2,7 @@
 //! store, the timeline fit, not only the model) fails that image with an
 //! error row and the worker takes the next one. A worker thread that ends
 //! while the service is not stopping is counted in
-//! [`Stats::dead_workers`](super::worker::Stats): the service then stops
+//! [`Stats::dead_workers`](super::job::Stats): the service then stops
 //! with an error, so systemd restarts it instead of the watchdog being fed
 //! while capacity drains away.
 
@@ -11,7 +11,7 @@ use std::panic::AssertUnwindSafe;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
-use super::worker::{mtime_string, sha256_hex, Job, WorkerCtx};
+use super::job::{mtime_string, sha256_hex, Job, WorkerCtx};
 use crate::store::{FileFacts, Outcome, Recorded, Store};
 
 /// The text of a panic's payload (empty when it carries none).
@@ -97,7 +97,7 @@ mod tests {
     use crate::config::Config;
     use crate::domain::names::NamePatterns;
     use crate::pipeline::counting::{CountError, LeafCounter};
-    use crate::pipeline::worker::Stats;
+    use crate::pipeline::job::Stats;
     use crate::store::CountRecord;
 
     struct NeverCalled;

@@ -5,67 +5,18 @@
 //! never on the tokio runtime. Every failure is recorded against the file and
 //! logged; nothing a file contains can stop a worker (panics included).
 
-use std::collections::HashSet;
 use std::panic::AssertUnwindSafe;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::path::Path;
+use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
-use sha2::{Digest, Sha256};
 use tokio::sync::mpsc;
 
-use crate::config::Config;
-use crate::domain::names::NamePatterns;
-use crate::pipeline::counting::LeafCounter;
+pub use super::job::{mtime_string, sha256_hex, Job, Stats, WorkerCtx};
+use crate::domain::names::ParsedName;
 use crate::pipeline::supervise::{panic_message, supervised, Lifeline};
-use crate::store::{FileFacts, Outcome, Precheck, Recorded, Store};
-
-/// One file to process.
-#[derive(Debug, Clone)]
-pub struct Job {
-    /// Absolute path.
-    pub path: PathBuf,
-    /// Path relative to the drop directory, `/` separators.
-    pub rel: String,
-}
-
-/// Counters shared by the intake, the workers and the status reporter.
-#[derive(Debug, Default)]
-pub struct Stats {
-    /// Jobs sent to the queue and not yet taken by a worker.
-    pub queued: AtomicUsize,
-    /// Jobs a worker is working on.
-    pub busy: AtomicUsize,
-    /// Images counted since start.
-    pub counted: AtomicU64,
-    /// Images recorded as failed since start.
-    pub failed: AtomicU64,
-    /// Duplicates and unchanged files skipped since start.
-    pub skipped: AtomicU64,
-    /// Errors of phyllo itself (database), since start; the file is retried by the next rescan.
-    pub internal_errors: AtomicU64,
-    /// Worker threads that ended while the service runs ([`super::supervise`]).
-    pub dead_workers: AtomicUsize,
-    /// Last image recorded.
-    pub last: Mutex<Option<String>>,
-}
-
-/// Everything a worker needs.
-pub struct WorkerCtx {
-    /// Configuration.
-    pub config: Config,
-    /// File-name patterns.
-    pub names: NamePatterns,
-    /// The model.
-    pub counter: Arc<dyn LeafCounter>,
-    /// Shared counters.
-    pub stats: Arc<Stats>,
-    /// Paths queued or being processed (the intake will not queue them twice).
-    pub in_flight: Arc<Mutex<HashSet<PathBuf>>>,
-    /// Set on SIGTERM: queued jobs are handed back (left for the next start's scan).
-    pub shutdown: Arc<AtomicBool>,
-}
+use crate::store::{CountRecord, FileFacts, Outcome, Precheck, Recorded, Store};
 
 /// Starts `n` worker threads sharing one receiver.
 pub fn spawn_workers(
@@ -113,21 +64,6 @@ fn work_loop(rx: &Mutex<mpsc::Receiver<Job>>, ctx: &WorkerCtx, store: &mut Store
         ctx.stats.busy.fetch_sub(1, Ordering::Relaxed);
         ctx.in_flight.lock().expect("in_flight lock").remove(&job.path);
     }
-}
-
-/// Formats a file's mtime as stored in the database.
-pub fn mtime_string(meta: &std::fs::Metadata) -> String {
-    match meta.modified() {
-        Ok(t) => chrono::DateTime::<chrono::Utc>::from(t)
-            .format("%Y-%m-%dT%H:%M:%S%.9fZ")
-            .to_string(),
-        Err(_) => String::new(),
-    }
-}
-
-/// Hex SHA-256.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// Largest file a worker reads, in bytes. A LemnaTec frame is 5–15 MB as PNG
@@ -250,42 +186,12 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
             tracing::debug!("{} vanished before it was read", job.rel);
             return Ok(None);
         }
-        Read::Refused(r, link_meta) => {
-            // Size and mtime as the intake and scans see them (following links where
-            // possible), so that rescans recognise the file as done.
-            let seen = std::fs::metadata(&job.path).ok().or(link_meta);
-            let facts = FileFacts {
-                rel: job.rel.clone(),
-                size: seen.as_ref().map_or(0, |m| m.len()),
-                mtime: Some(seen.as_ref().map(mtime_string).unwrap_or_default()),
-                // Not the content (it was not read): a stable marker of the refusal, so
-                // the same refusal is recognised as unchanged and not recorded twice.
-                sha256: sha256_hex(format!("phyllo-refused:{}", r.error).as_bytes()),
-            };
-            if let Precheck::Skip(why) = store.precheck(&facts, None)? {
-                tracing::debug!("skip: {why}");
-                ctx.stats.skipped.fetch_add(1, Ordering::Relaxed);
-                return Ok(None);
-            }
-            tracing::warn!("{}", r.error);
-            let recorded = store.record(
-                &facts,
-                Outcome::Failed {
-                    name: None,
-                    error: r.error,
-                    retry: r.retry,
-                },
-            )?;
-            ctx.stats.failed.fetch_add(1, Ordering::Relaxed);
-            *ctx.stats.last.lock().expect("last lock") = Some(job.rel.clone());
-            return Ok(Some(recorded));
-        }
+        Read::Refused(r, link_meta) => return record_refused(store, ctx, job, r, link_meta),
     };
-    let mtime = mtime_string(&meta);
     let facts = FileFacts {
         rel: job.rel.clone(),
         size: bytes.len() as u64,
-        mtime: Some(mtime),
+        mtime: Some(mtime_string(&meta)),
         sha256: sha256_hex(&bytes),
     };
     let rel = Path::new(&job.rel);
@@ -316,61 +222,10 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
                 },
             )?
         }
-        Ok(name) if reused.is_some() => {
-            let (count, original) = reused.expect("checked");
-            // Not a duplicate: the name says another plant, time or view (or the path
-            // went back to an older version), so it is an observation of its own.
-            tracing::warn!(
-                "{}: same bytes as {original}, counted there; its count ({} leaves) is reused for {} {} {}",
-                job.rel,
-                count.leaf_count,
-                name.plant,
-                name.taken_at,
-                name.view
-            );
-            store.record(&facts, Outcome::Counted(&name, &count))?
-        }
-        Ok(name) => {
-            let counted = std::panic::catch_unwind(AssertUnwindSafe(|| ctx.counter.count(&job.path, &bytes)));
-            match counted {
-                Ok(Ok(count)) => {
-                    let r = store.record(&facts, Outcome::Counted(&name, &count))?;
-                    tracing::info!(
-                        "{}: {} leaves ({} {}), {:.0} ms",
-                        job.rel,
-                        count.leaf_count,
-                        name.plant,
-                        name.view,
-                        count.ms_total
-                    );
-                    r
-                }
-                Ok(Err(e)) => {
-                    tracing::warn!("{}", e.message);
-                    store.record(
-                        &facts,
-                        Outcome::Failed {
-                            name: Some(&name),
-                            error: e.message,
-                            retry: e.retry,
-                        },
-                    )?
-                }
-                Err(panic) => {
-                    let what = panic_message(&*panic);
-                    let error = format!("{}: counting panicked: {what}", job.path.display());
-                    tracing::error!("{error}");
-                    store.record(
-                        &facts,
-                        Outcome::Failed {
-                            name: Some(&name),
-                            error,
-                            retry: false,
-                        },
-                    )?
-                }
-            }
-        }
+        Ok(name) => match reused {
+            Some((count, original)) => record_reused(store, job, &facts, &name, &count, &original)?,
+            None => count_and_record(store, ctx, job, &facts, &name, &bytes)?,
+        },
     };
     match &recorded {
         Recorded::Counted { .. } => ctx.stats.counted.fetch_add(1, Ordering::Relaxed),
@@ -379,4 +234,112 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
     };
     *ctx.stats.last.lock().expect("last lock") = Some(job.rel.clone());
     Ok(Some(recorded))
+}
+
+/// Records a file that was not read (a link out, a loop, too large, ...).
+fn record_refused(
+    store: &mut Store,
+    ctx: &WorkerCtx,
+    job: &Job,
+    r: Refused,
+    link_meta: Option<std::fs::Metadata>,
+) -> anyhow::Result<Option<Recorded>> {
+    // Size and mtime as the intake and scans see them (following links where
+    // possible), so that rescans recognise the file as done.
+    let seen = std::fs::metadata(&job.path).ok().or(link_meta);
+    let facts = FileFacts {
+        rel: job.rel.clone(),
+        size: seen.as_ref().map_or(0, |m| m.len()),
+        mtime: Some(seen.as_ref().map(mtime_string).unwrap_or_default()),
+        // Not the content (it was not read): a stable marker of the refusal, so
+        // the same refusal is recognised as unchanged and not recorded twice.
+        sha256: sha256_hex(format!("phyllo-refused:{}", r.error).as_bytes()),
+    };
+    if let Precheck::Skip(why) = store.precheck(&facts, None)? {
+        tracing::debug!("skip: {why}");
+        ctx.stats.skipped.fetch_add(1, Ordering::Relaxed);
+        return Ok(None);
+    }
+    tracing::warn!("{}", r.error);
+    let recorded = store.record(
+        &facts,
+        Outcome::Failed {
+            name: None,
+            error: r.error,
+            retry: r.retry,
+        },
+    )?;
+    ctx.stats.failed.fetch_add(1, Ordering::Relaxed);
+    *ctx.stats.last.lock().expect("last lock") = Some(job.rel.clone());
+    Ok(Some(recorded))
+}
+
+/// Records an image whose bytes were counted under another identity, with
+/// that count: not a duplicate, since the name says another plant, time or
+/// view (or the path went back to an older version).
+fn record_reused(
+    store: &mut Store,
+    job: &Job,
+    facts: &FileFacts,
+    name: &ParsedName,
+    count: &CountRecord,
+    original: &str,
+) -> anyhow::Result<Recorded> {
+    tracing::warn!(
+        "{}: same bytes as {original}, counted there; its count ({} leaves) is reused for {} {} {}",
+        job.rel,
+        count.leaf_count,
+        name.plant,
+        name.taken_at,
+        name.view
+    );
+    store.record(facts, Outcome::Counted(name, count))
+}
+
+/// Runs the model on the bytes (a panic in it fails the image) and records
+/// the outcome.
+fn count_and_record(
+    store: &mut Store,
+    ctx: &WorkerCtx,
+    job: &Job,
+    facts: &FileFacts,
+    name: &ParsedName,
+    bytes: &[u8],
+) -> anyhow::Result<Recorded> {
+    let counted = std::panic::catch_unwind(AssertUnwindSafe(|| ctx.counter.count(&job.path, bytes)));
+    let (error, retry) = match counted {
+        Ok(Ok(count)) => {
+            let r = store.record(facts, Outcome::Counted(name, &count))?;
+            tracing::info!(
+                "{}: {} leaves ({} {}), {:.0} ms",
+                job.rel,
+                count.leaf_count,
+                name.plant,
+                name.view,
+                count.ms_total
+            );
+            return Ok(r);
+        }
+        Ok(Err(e)) => {
+            tracing::warn!("{}", e.message);
+            (e.message, e.retry)
+        }
+        Err(panic) => {
+            let error = format!(
+                "{}: counting panicked: {}",
+                job.path.display(),
+                panic_message(&*panic)
+            );
+            tracing::error!("{error}");
+            (error, false)
+        }
+    };
+    store.record(
+        facts,
+        Outcome::Failed {
+            name: Some(name),
+            error,
+            retry,
+        },
+    )
 }

@@ -271,6 +271,18 @@ impl Store {
         )?)
     }
 
+    /// Counted, current images whose bytes equal an earlier counted image's
+    /// (a copy or rename under another plant, time or view).
+    pub fn images_sharing_bytes(&self) -> anyhow::Result<i64> {
+        Ok(self.conn.query_row(
+            "SELECT COUNT(*) FROM images a WHERE a.state = 'counted' AND a.superseded = 0
+               AND EXISTS (SELECT 1 FROM images b WHERE b.sha256 = a.sha256 AND b.id < a.id
+                           AND b.state = 'counted' AND b.superseded = 0)",
+            [],
+            |r| r.get(0),
+        )?)
+    }
+
     /// The service's self-report (key → value).
     pub fn service(&self) -> anyhow::Result<BTreeMap<String, String>> {
         let mut stmt = self.conn.prepare("SELECT key, value FROM service")?;

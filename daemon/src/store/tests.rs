@@ -218,7 +218,9 @@ fn the_same_bytes_under_another_plant_are_an_observation_of_their_own() {
         panic!("another plant's image is not a duplicate");
     };
     assert_eq!(original, "RA-1_x.png");
+    assert_eq!(s.images_sharing_bytes().unwrap(), 0);
     s.record(&b, Outcome::Counted(&nb, &reused)).unwrap();
+    assert_eq!(s.images_sharing_bytes().unwrap(), 1);
     for plant in ["RA-1", "RB-1"] {
         let t = s.plant_timeline(plant).unwrap().unwrap();
         assert_eq!(t.sessions[0].fused, 8.0, "{plant}");

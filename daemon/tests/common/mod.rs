@@ -303,6 +303,21 @@ impl Daemon {
             .unwrap_or(0)
     }
 
+    /// Waits up to `timeout` for it to exit on its own; its exit status, or
+    /// `None` if it still runs.
+    pub fn exited_within(&mut self, timeout: Duration) -> Option<ExitStatus> {
+        let t0 = Instant::now();
+        loop {
+            if let Some(st) = self.child.as_mut().unwrap().try_wait().unwrap() {
+                return Some(st);
+            }
+            if t0.elapsed() > timeout {
+                return None;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
     /// Whether it is still running.
     pub fn alive(&mut self) -> bool {
         self.child.as_mut().unwrap().try_wait().unwrap().is_none()
