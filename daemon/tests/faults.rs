@@ -501,7 +501,7 @@ fn nothing_leaves_the_drop_directory() {
         0,
         "a linked directory is not descended into"
     );
-    assert_eq!(site.q("SELECT COUNT(*) FROM observations"), 1);
+    assert_eq!(site.q("SELECT COUNT(*) FROM observations"), 2);
     assert!(
         !site.log_text().contains("FARAWAY"),
         "nothing from the outside tree was even looked at:\n{}",
@@ -614,10 +614,8 @@ fn a_database_deleted_while_running_stops_the_service_loudly() {
         status.unwrap_or_else(|| panic!("still running 30 s after its database was deleted:\n{log}"));
     assert!(!status.success(), "{status:?}");
     assert!(
-        log.contains(&format!(
-            "database {} was deleted while the service ran",
-            site.db.display()
-        )),
+        // Deleted, or (once some connection made a new file there) replaced.
+        log.contains(&format!("database {} was deleted", site.db.display())),
         "{log}"
     );
 }

@@ -93,12 +93,55 @@ fn counting_settings(config: &phyllo_inference::CounterConfig) -> serde_json::Va
     // The contract's values where the configuration leaves them open, so a
     // later contract change shows too.
     let zoom = phyllo_inference::zoom::Zoom::from_contract(phyllo_contract::Contract::embedded());
-    serde_json::json!({
+    let mut settings = serde_json::json!({
         "zoom_plant_height": config.zoom_plant_height.unwrap_or(zoom.plant_height),
         "max_zoom": config.max_zoom.unwrap_or(zoom.max),
         "flip": config.flip,
         "region": config.region,
         "scale": config.scale,
         "postprocess": config.postprocess,
-    })
+    });
+    shorten_f32(&mut settings);
+    settings
+}
+
+/// Writes numbers that came from `f32` settings as their shortest decimal
+/// (`0.3`, not `0.30000001192092896`): `json!` widens them to `f64`, and the
+/// stored settings reach `images.csv` and `phyllo status`.
+fn shorten_f32(v: &mut serde_json::Value) {
+    match v {
+        serde_json::Value::Number(n) if !(n.is_i64() || n.is_u64()) => {
+            let x = n.as_f64().unwrap_or_default();
+            let narrow = x as f32;
+            if f64::from(narrow) == x {
+                if let Some(short) = narrow
+                    .to_string()
+                    .parse::<f64>()
+                    .ok()
+                    .and_then(serde_json::Number::from_f64)
+                {
+                    *n = short;
+                }
+            }
+        }
+        serde_json::Value::Array(items) => items.iter_mut().for_each(shorten_f32),
+        serde_json::Value::Object(map) => map.values_mut().for_each(shorten_f32),
+        _ => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn settings_read_as_the_config_wrote_them() {
+        let config = phyllo_inference::CounterConfig {
+            scale: Some(0.3),
+            ..phyllo_inference::CounterConfig::default()
+        };
+        let text = counting_settings(&config).to_string();
+        assert!(text.contains("\"scale\":0.3,"), "{text}");
+        assert!(!text.contains("0000000"), "{text}");
+    }
 }

@@ -46,7 +46,7 @@ impl DatabaseIdentity {
             )),
             Err(e) => Some(format!("database {}: {e}", self.path.display())),
             Ok(m) if (m.dev(), m.ino()) != (self.dev, self.ino) => Some(format!(
-                "database {} was replaced by another file while the service ran",
+                "database {} was deleted or replaced by another file while the service ran",
                 self.path.display()
             )),
             Ok(_) => None,
@@ -83,7 +83,7 @@ mod tests {
         let other = dir.path().join("restored.sqlite");
         std::fs::write(&other, b"y").unwrap();
         std::fs::rename(&other, &db).unwrap();
-        assert!(unhealthy(&id, &stats).unwrap().contains("was replaced"));
+        assert!(unhealthy(&id, &stats).unwrap().contains("deleted or replaced"));
         std::fs::remove_file(&db).unwrap();
         assert!(unhealthy(&id, &stats).unwrap().contains("was deleted"));
     }
