@@ -576,6 +576,16 @@ fn bad_input_each_kind_recorded_and_service_keeps_going() {
         site.q("SELECT COUNT(DISTINCT path) FROM feed WHERE kind = 'failed'"),
         failed
     );
+    // A plant whose every image failed has no timeline: the text lists it apart.
+    let uncounted = site.q(
+        "SELECT COUNT(*) FROM plants p WHERE NOT EXISTS (SELECT 1 FROM observations o WHERE o.plant_id = p.id)",
+    );
+    let text = String::from_utf8_lossy(&site.phyllo(&["status"]).stdout).into_owned();
+    assert!(uncounted > 0, "some plant has only failed images");
+    assert!(
+        text.contains(&format!("plants:    {uncounted} plant")) && text.contains(" no counted image yet: "),
+        "{text}"
+    );
     // The SQL-looking plant id is data, nothing else: every table is still there.
     assert_eq!(
         site.q("SELECT COUNT(*) FROM plants WHERE name = 'x''); DROP TABLE images;--'"),

@@ -1,4 +1,4 @@
-//! `phyllo status --config FILE [--json | --check]`.
+//! `phyllo status --config FILE [--json | --check | --verbose]`.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -21,6 +21,10 @@ pub struct Args {
     /// 0 OK, 1 WARNING, 2 CRITICAL, 3 UNKNOWN (the database cannot be read).
     #[arg(long)]
     check: bool,
+    /// Also print internal detail: the fingerprint of the settings the
+    /// timelines were fitted with and the service's counting settings.
+    #[arg(long, conflicts_with_all = ["check", "json"])]
+    verbose: bool,
 }
 
 /// How bad a finding of `--check` is.
@@ -120,15 +124,18 @@ pub fn findings(h: &Health) -> Vec<(Level, String)> {
     if h.failed_last_day > 0 {
         out.push((
             Level::Warning,
-            format!("{} images failed in the last 24 h", h.failed_last_day),
+            format!(
+                "{} failed in the last 24 h",
+                count(h.failed_last_day, "image", "images")
+            ),
         ));
     }
     if h.internal_errors > 0 {
         out.push((
             Level::Warning,
             format!(
-                "{} internal errors since start (see the journal)",
-                h.internal_errors
+                "{} since start (see the journal)",
+                count(h.internal_errors, "internal error", "internal errors")
             ),
         ));
     }
@@ -282,6 +289,8 @@ struct Report {
     last: Option<LastImage>,
     /// The newest failures: (path, error).
     failures: Vec<(String, String)>,
+    /// Plants with no count at all (their images failed): no timeline yet.
+    uncounted: Vec<String>,
     /// Counts made with other settings than the service's (an upgrade since):
     /// `phyllo recount` brings them in line.
     other_settings: Option<i64>,
@@ -306,6 +315,7 @@ impl Report {
         let timeline = store.timeline_summary()?;
         let last = store.last_image()?;
         let failures = store.recent_failures(5)?;
+        let uncounted = store.plants_without_counts()?;
         let other_settings = match svc.get("settings") {
             Some(s) => Some(store.counts_with_other_settings(s)?),
             None => None,
@@ -325,6 +335,7 @@ impl Report {
             timeline,
             last,
             failures,
+            uncounted,
             other_settings,
             backup_dir,
             snapshots,
@@ -349,6 +360,14 @@ fn show(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     print_service(&config, &r, &state);
+    for line in count_lines(&r.counts, &r.timeline, &r.uncounted) {
+        println!("{line}");
+    }
+    if args.verbose {
+        let get = |k: &str| r.svc.get(k).map_or("-", String::as_str);
+        println!("fit:       {}", r.timeline.settings.as_deref().unwrap_or("-"));
+        println!("counting:  {}", get("settings"));
+    }
     print_climate(&config, &r);
     print_attention(&r);
     print_backup(&r);
@@ -404,18 +423,46 @@ fn print_service(config: &Config, r: &Report, state: &str) {
         get("queued"),
         get("busy")
     );
-    let counts = &r.counts;
-    println!(
-        "images:    {} counted, {} duplicates, {} failed; {} imported counts; {} plants",
-        counts.counted, counts.duplicate, counts.failed, counts.imported, counts.plants
-    );
-    println!(
-        "timeline:  {} leaves dated; {} leaves lost on {} plants; fit {}",
-        r.timeline.events,
-        r.timeline.leaves_lost,
-        r.timeline.plants_with_lost_leaves,
-        r.timeline.settings.as_deref().unwrap_or("-")
-    );
+}
+
+/// "1 leaf", "2 leaves", "0 leaves".
+fn count(n: i64, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
+/// At most this many plants without a count are named.
+const UNCOUNTED_NAMED: usize = 10;
+
+/// The images, the plants and the timelines in words: plants without any
+/// count (`uncounted`) are listed apart, not among the plants with a timeline.
+fn count_lines(counts: &ImageCounts, timeline: &TimelineSummary, uncounted: &[String]) -> Vec<String> {
+    let with_counts = counts.plants - uncounted.len() as i64;
+    let mut out = vec![format!(
+        "images:    {} counted, {}, {} failed; {}; {} counted",
+        counts.counted,
+        count(counts.duplicate, "duplicate", "duplicates"),
+        counts.failed,
+        count(counts.imported, "imported count", "imported counts"),
+        count(with_counts, "plant", "plants"),
+    )];
+    if !uncounted.is_empty() {
+        let mut names = uncounted[..uncounted.len().min(UNCOUNTED_NAMED)].join(", ");
+        if uncounted.len() > UNCOUNTED_NAMED {
+            names.push_str(", …");
+        }
+        out.push(format!(
+            "plants:    {} no counted image yet: {names}",
+            count(uncounted.len() as i64, "plant has", "plants have"),
+        ));
+    }
+    let lost = timeline.leaves_lost;
+    out.push(format!(
+        "timeline:  {} dated; {lost} {} lost on {}",
+        count(timeline.events, "leaf", "leaves"),
+        if lost == 1.0 { "leaf" } else { "leaves" },
+        count(timeline.plants_with_lost_leaves, "plant", "plants"),
+    ));
+    out
 }
 
 /// The temperature logs, and the zones whose plants they leave without
@@ -423,13 +470,13 @@ fn print_service(config: &Config, r: &Report, state: &str) {
 fn print_climate(config: &Config, r: &Report) {
     for c in &r.climate {
         println!(
-            "climate:   {}{} temperatures from {} to {}; longest gap {:.1} h{}",
+            "climate:   {}{} from {} to {}; longest gap {:.1} h{}",
             if c.zone.is_empty() {
                 String::new()
             } else {
                 format!("zone {}: ", c.zone)
             },
-            c.readings,
+            count(c.readings, "temperature", "temperatures"),
             &c.first[..c.first.len().min(16)],
             &c.last[..c.last.len().min(16)],
             c.longest_gap_hours,
@@ -458,14 +505,16 @@ fn print_climate(config: &Config, r: &Report) {
 fn print_attention(r: &Report) {
     if r.in_doubt > 0 {
         println!(
-            "review:    {} plant sessions in doubt: `phyllo review` lists the most doubtful to count by hand",
-            r.in_doubt
+            "review:    {} in doubt: `phyllo review` lists the most doubtful to count by hand",
+            count(r.in_doubt as i64, "plant session", "plant sessions")
         );
     }
     match r.other_settings {
         Some(0) => println!("settings:  every count made with the service's settings"),
         Some(n) => println!(
-            "settings:  {n} counts made with other settings than the service's (an upgrade since?): `phyllo recount` counts them again"
+            "settings:  {} made with other settings than the service's (an upgrade since?): `phyllo recount` counts {} again",
+            count(n, "count", "counts"),
+            if n == 1 { "it" } else { "them" }
         ),
         None => {}
     }
@@ -541,6 +590,75 @@ mod tests {
             export_age_hours: Some(6),
             ..Health::default()
         }
+    }
+
+    #[test]
+    fn counts_read_in_words_and_plants_without_a_count_stand_apart() {
+        let counts = ImageCounts {
+            counted: 1,
+            duplicate: 1,
+            failed: 1,
+            imported: 1,
+            plants: 2,
+        };
+        let timeline = TimelineSummary {
+            events: 1,
+            plants_with_lost_leaves: 1,
+            leaves_lost: 1.0,
+            settings: Some("fusion=second-max-side;session_gap_minutes=240".into()),
+        };
+        let lines = count_lines(&counts, &timeline, &["B-2".into()]);
+        assert_eq!(
+            lines,
+            [
+                "images:    1 counted, 1 duplicate, 1 failed; 1 imported count; 1 plant counted",
+                "plants:    1 plant has no counted image yet: B-2",
+                "timeline:  1 leaf dated; 1 leaf lost on 1 plant",
+            ]
+        );
+        let many: Vec<String> = (1..=12).map(|i| format!("P{i:02}")).collect();
+        let counts = ImageCounts {
+            counted: 2,
+            plants: 14,
+            ..counts
+        };
+        let timeline = TimelineSummary {
+            events: 2,
+            plants_with_lost_leaves: 2,
+            leaves_lost: 2.5,
+            ..timeline
+        };
+        let lines = count_lines(&counts, &timeline, &many);
+        assert_eq!(
+            lines,
+            [
+                "images:    2 counted, 1 duplicate, 1 failed; 1 imported count; 2 plants counted",
+                "plants:    12 plants have no counted image yet: P01, P02, P03, P04, P05, P06, P07, P08, P09, P10, …",
+                "timeline:  2 leaves dated; 2.5 leaves lost on 2 plants",
+            ]
+        );
+        let none = count_lines(&ImageCounts::default(), &TimelineSummary::default(), &[]);
+        assert_eq!(
+            none,
+            [
+                "images:    0 counted, 0 duplicates, 0 failed; 0 imported counts; 0 plants counted",
+                "timeline:  0 leaves dated; 0 leaves lost on 0 plants",
+            ]
+        );
+        assert!(lines.iter().chain(&none).all(|l| !l.contains("fusion=")));
+    }
+
+    #[test]
+    fn one_failure_and_one_error_read_in_the_singular() {
+        let h = Health {
+            failed_last_day: 1,
+            internal_errors: 1,
+            ..healthy()
+        };
+        assert_eq!(
+            check_line(&findings(&h)).0,
+            "phyllo WARNING: 1 image failed in the last 24 h; 1 internal error since start (see the journal)"
+        );
     }
 
     #[test]

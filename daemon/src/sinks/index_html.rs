@@ -54,9 +54,11 @@ pub fn render(idx: &Index) -> String {
 fn page_head(h: &mut String, idx: &Index) {
     h.push_str(
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>phyllo: leaf counts</title>\n\
-         <style>body{font-family:sans-serif;margin:2em;color:#222}table{border-collapse:collapse;font-size:90%}\
-         th,td{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#eee}\
-         td:first-child,th:first-child{text-align:left}img{max-width:100%}</style>\n</head>\n<body>\n",
+         <style>body{font-family:sans-serif;margin:1em auto;padding:0 1em;max-width:1300px;color:#222}\
+         .wide{max-width:100%;overflow-x:auto}table{border-collapse:collapse;font-size:90%}\
+         th,td{border:1px solid #ccc;padding:3px 6px;text-align:right;overflow-wrap:anywhere}\
+         th{background:#eee;vertical-align:bottom}td:first-child,th:first-child{text-align:left}\
+         code{overflow-wrap:anywhere}img{max-width:100%;height:auto}</style>\n</head>\n<body>\n",
     );
     h.push_str("<h1>phyllo: leaf counts and emergence</h1>\n");
     h.push_str(&format!(
@@ -92,7 +94,7 @@ fn groups_section(h: &mut String, idx: &Index) {
     table(h, head, rows, |_, cell| text(cell).into_owned());
     if let Some(png) = &idx.groups_plot {
         h.push_str(&format!(
-            "<p><img src=\"{}\" alt=\"leaves emerged per group\"></p>\n",
+            "<p><img src=\"{}\" alt=\"leaves emerged per group\" loading=\"lazy\"></p>\n",
             attr(png)
         ));
     }
@@ -174,40 +176,107 @@ fn review_section(h: &mut String, idx: &Index) {
     }
 }
 
-/// Every plant's summary, and where its newest leaf emerged when drawn.
+/// Every plant's summary, with a thumbnail of its plot after its id when
+/// plots were drawn, and where its newest leaf emerged when drawn.
 fn plants_section(h: &mut String, idx: &Index) {
     h.push_str("<h2>Plants</h2>\n");
     let (head, rows) = &idx.plants;
     let linked = plant_linked(idx);
-    if idx.sites.is_empty() {
-        table(h, head, rows, linked);
-    } else {
-        // One more column: the newest leaf, linked to where it emerged.
-        let mut head = head.clone();
-        head.push("newest leaf seen".into());
-        let n = head.len() - 1;
-        let rows: Vec<Vec<String>> = rows
-            .iter()
-            .map(|r| {
-                let mut r = r.clone();
-                r.push(r.first().cloned().unwrap_or_default());
-                r
-            })
-            .collect();
-        table(h, &head, &rows, |col, cell| {
-            match (col == n, idx.sites.get(cell)) {
-                (true, Some((leaf, png))) => format!("<a href=\"sites/{}\">leaf {leaf}</a>", attr(png)),
-                (true, None) => String::new(),
-                _ => linked(col, cell),
-            }
-        });
+    let (thumbs, sites) = (!idx.plots.is_empty(), !idx.sites.is_empty());
+    // The added columns carry the plant id; `table` draws them from it.
+    let mut head = head.clone();
+    if thumbs {
+        head.insert(1.min(head.len()), "plot".into());
     }
+    if sites {
+        head.push("newest leaf seen".into());
+    }
+    let n = head.len() - 1;
+    let rows: Vec<Vec<String>> = rows
+        .iter()
+        .map(|r| {
+            let mut r = r.clone();
+            let id = r.first().cloned().unwrap_or_default();
+            if thumbs {
+                r.insert(1.min(r.len()), id.clone());
+            }
+            if sites {
+                r.push(id);
+            }
+            r
+        })
+        .collect();
+    table(h, &head, &rows, |col, cell| match col {
+        1 if thumbs => idx.plots.get(cell).map_or(String::new(), |png| {
+            format!(
+                "<a href=\"plots/{0}\"><img src=\"plots/{0}\" alt=\"{1}: timeline plot\" width=\"160\" \
+                 loading=\"lazy\"></a>",
+                attr(png),
+                attr(cell)
+            )
+        }),
+        _ if sites && col == n => idx.sites.get(cell).map_or(String::new(), |(leaf, png)| {
+            format!("<a href=\"sites/{}\">leaf {leaf}</a>", attr(png))
+        }),
+        _ => linked(col, cell),
+    });
 }
 
+/// Column names of the tables (as in the CSVs) in words for the page.
+const HEADINGS: [(&str, &str); 19] = [
+    ("first_session", "first session"),
+    ("last_session", "last session"),
+    ("leaves_emerged", "leaves emerged"),
+    ("living", "living leaves"),
+    ("leaves_lost", "leaves lost"),
+    ("phyllochron_days", "days per leaf"),
+    ("phyllochron_cd", "degree-days per leaf"),
+    ("phyllochron_plants", "plants with days per leaf"),
+    ("phyllochron_cd_plants", "plants with degree-days per leaf"),
+    ("events", "leaves dated"),
+    ("last_emergence", "last leaf emerged"),
+    ("climate_zone", "climate zone"),
+    ("next_leaf", "next leaf"),
+    ("next_leaf_expected", "next leaf expected"),
+    ("timestamp", "session"),
+    ("phyllo_count", "phyllo's count"),
+    ("timeline", "timeline says"),
+    ("views", "count per view"),
+    ("why", "why in doubt"),
+];
+
+/// A column name in words: `phyllochron_days` → "days per leaf",
+/// `leaves_emerged_sd` → "leaves emerged (SD)"; a name not known has its
+/// underscores read as spaces.
+fn heading(name: &str) -> String {
+    let known = |n: &str| {
+        HEADINGS
+            .iter()
+            .find(|(raw, _)| *raw == n)
+            .map(|(_, w)| w.to_string())
+    };
+    let spread = [("_mean", "mean"), ("_sd", "SD")]
+        .iter()
+        .find_map(|(suffix, what)| Some((name.strip_suffix(suffix)?, what)));
+    known(name)
+        .or_else(|| {
+            spread.map(|(base, what)| format!("{} ({what})", known(base).unwrap_or(base.replace('_', " "))))
+        })
+        .unwrap_or_else(|| name.replace('_', " "))
+}
+
+/// A table of `rows` under `head` (column names, shown in words with the
+/// name itself as the tooltip), in a wrapper that scrolls rather than widen
+/// the page; `cell` draws each cell from its column and text.
 fn table(h: &mut String, head: &[String], rows: &[Vec<String>], cell: impl Fn(usize, &str) -> String) {
-    h.push_str("<table>\n<tr>");
+    h.push_str("<div class=\"wide\"><table>\n<tr>");
     for c in head {
-        h.push_str(&format!("<th>{}</th>", text(c)));
+        let words = heading(c);
+        if words == *c {
+            h.push_str(&format!("<th>{}</th>", text(c)));
+        } else {
+            h.push_str(&format!("<th title=\"{}\">{}</th>", attr(c), text(&words)));
+        }
     }
     h.push_str("</tr>\n");
     for r in rows {
@@ -217,7 +286,7 @@ fn table(h: &mut String, head: &[String], rows: &[Vec<String>], cell: impl Fn(us
         }
         h.push_str("</tr>\n");
     }
-    h.push_str("</table>\n");
+    h.push_str("</table></div>\n");
 }
 
 /// The "Leaves due" section's rows and the days it spans.
@@ -366,6 +435,60 @@ mod tests {
             1,
             "no temporary file left"
         );
+    }
+
+    #[test]
+    fn columns_read_in_words_and_plants_show_their_plot_small() {
+        let idx = Index {
+            plants: (
+                ["plant", "phyllochron_days", "phyllochron_cd", "leaves_emerged"]
+                    .map(String::from)
+                    .to_vec(),
+                vec![
+                    ["A-1", "2.1", "40", "7"].map(String::from).to_vec(),
+                    ["B-2", "", "", "1"].map(String::from).to_vec(),
+                ],
+            ),
+            plots: BTreeMap::from([("A-1".to_string(), "A-1.png".to_string())]),
+            groups: Some((
+                ["genotype", "leaves_emerged_sd", "phyllochron_days_mean"]
+                    .map(String::from)
+                    .to_vec(),
+                vec![],
+            )),
+            ..Index::default()
+        };
+        let page = render(&idx);
+        for th in [
+            "<th title=\"phyllochron_days\">days per leaf</th>",
+            "<th title=\"phyllochron_cd\">degree-days per leaf</th>",
+            "<th title=\"leaves_emerged\">leaves emerged</th>",
+            "<th title=\"leaves_emerged_sd\">leaves emerged (SD)</th>",
+            "<th title=\"phyllochron_days_mean\">days per leaf (mean)</th>",
+            "<th>plant</th><th>plot</th>",
+            "<th>genotype</th>",
+        ] {
+            assert!(page.contains(th), "{th} in {page}");
+        }
+        assert!(!page.contains(">phyllochron_days<"), "{page}");
+        // A plot's thumbnail, small and loaded when scrolled to; none without a plot.
+        assert!(
+            page.contains(
+                "<tr><td><a href=\"plots/A-1.png\">A-1</a></td><td><a href=\"plots/A-1.png\">\
+                 <img src=\"plots/A-1.png\" alt=\"A-1: timeline plot\" width=\"160\" loading=\"lazy\"></a></td>\
+                 <td>2.1</td>"
+            ),
+            "{page}"
+        );
+        assert!(page.contains("<tr><td>B-2</td><td></td><td></td>"), "{page}");
+        // Fits a laptop screen: the page is bounded and wide tables scroll in their box.
+        assert!(page.contains("max-width:1300px") && page.contains(".wide{max-width:100%;overflow-x:auto}"));
+        assert_eq!(
+            page.matches("<div class=\"wide\"><table>").count(),
+            page.matches("<table>").count()
+        );
+        assert!(!page.contains("nowrap"));
+        assert_eq!(heading("some_new_column"), "some new column");
     }
 
     #[test]

@@ -377,6 +377,18 @@ impl Store {
         Ok(rows)
     }
 
+    /// Plant ids with no count at all, sorted: every image of theirs failed
+    /// or was a duplicate, and no count was imported for them. They have no
+    /// timeline yet.
+    pub fn plants_without_counts(&self) -> anyhow::Result<Vec<String>> {
+        let mut stmt = self.conn.prepare(
+            "SELECT name FROM plants p
+             WHERE NOT EXISTS (SELECT 1 FROM observations o WHERE o.plant_id = p.id) ORDER BY name",
+        )?;
+        let rows = stmt.query_map([], |r| r.get(0))?.collect::<Result<_, _>>()?;
+        Ok(rows)
+    }
+
     /// Every plant's timeline as stored, in plant order.
     pub fn plant_timelines(&self) -> anyhow::Result<Vec<PlantTimeline>> {
         let mut out = Vec::new();
