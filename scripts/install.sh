@@ -38,6 +38,12 @@ home=$HOME
 [ -z "${SUDO_USER:-}" ] || home=$(getent passwd "$SUDO_USER" | cut -d: -f6)
 cache=${PHYLLO_ORT_CACHE:-${XDG_CACHE_HOME:-$home/.cache}/phyllo/onnxruntime-$ver}
 ort=${PHYLLO_ORT_LIB:-$cache/libonnxruntime.so.$ver}
+if [ ! -f "$ort" ] && [ -z "${PHYLLO_ORT_LIB:-}" ]; then
+  # A build without a cache directory (no HOME) keeps its copy in its OUT_DIR.
+  for f in "$root"/target/*/build/phyllo-inference-*/out/onnxruntime/libonnxruntime.so."$ver"; do
+    [ -f "$f" ] && ort=$f && break
+  done
+fi
 [ -f "$ort" ] || {
   echo "install.sh: ONNX Runtime $ver not found at $ort: cargo build provisions it there; or set PHYLLO_ORT_LIB" >&2
   exit 1
