@@ -14,8 +14,24 @@ use crate::store::{FeedRow, Store};
 /// How often the feed is polled.
 pub const POLL: Duration = Duration::from_millis(250);
 
-/// Formats one feed row for people.
+/// What `tail` says once, on standard error, before its first line: every
+/// time it shows is one clock's, the facility's local time.
+pub const TIME_NOTE: &str =
+    "phyllo tail: times are local: an image's line shows when it was taken, other lines when phyllo wrote them";
+
+/// Formats one feed row for people, its times in this computer's local time.
 pub fn format_row(r: &FeedRow) -> String {
+    format_row_in(r, &chrono::Local)
+}
+
+/// [`format_row`] with the feed's UTC write times shown in `zone` (tests
+/// pin it; capture times are already the facility's local time).
+pub fn format_row_in<Z: chrono::TimeZone>(r: &FeedRow, zone: &Z) -> String
+where
+    Z::Offset: std::fmt::Display,
+{
+    let at = written_at(&r.at, zone);
+    let r = &FeedRow { at, ..r.clone() };
     let plant = r.plant.as_deref().unwrap_or("-");
     let new = if r.new_leaves.is_empty() {
         String::new()
@@ -79,6 +95,18 @@ pub fn format_row(r: &FeedRow) -> String {
     }
 }
 
+/// A feed write time (UTC, `…Z`) in `zone`, as capture times are written
+/// (`2026-12-05T09:00:00.000`); left as it is when it does not parse.
+fn written_at<Z: chrono::TimeZone>(at: &str, zone: &Z) -> String
+where
+    Z::Offset: std::fmt::Display,
+{
+    chrono::DateTime::parse_from_rfc3339(at).map_or_else(
+        |_| at.to_string(),
+        |t| t.with_timezone(zone).format("%Y-%m-%dT%H:%M:%S%.3f").to_string(),
+    )
+}
+
 /// Prints feed rows as they land until `stop()` is true. With `from_start`
 /// the whole feed is replayed first; otherwise only new rows are shown.
 pub fn follow(
@@ -92,6 +120,9 @@ pub fn follow(
     // Wait for the service to create (and migrate) the database, so tail can start
     // first. Everything in a database that did not exist yet is new to us.
     let existed = db.exists();
+    if !json {
+        eprintln!("{TIME_NOTE}");
+    }
     let mut complained = false;
     let store = loop {
         match Store::open_read_only(db) {
@@ -152,7 +183,7 @@ mod tests {
             ..FeedRow::default()
         };
         assert_eq!(
-            format_row(&row),
+            format_row_in(&row, &chrono::Utc),
             "2026-05-01T10:00:00  P1  SV_36  RECOUNT  P1/a.png: count 8 -> 9 (phyllo-s10-cpu)"
         );
     }
@@ -167,9 +198,25 @@ mod tests {
             ..FeedRow::default()
         };
         assert_eq!(
-            format_row(&row),
+            format_row_in(&row, &chrono::Utc),
             "2026-05-04T10:00:00.000  P1  LOST  a leaf died by 2026-05-04 10:00 (1 lost in all)"
         );
+    }
+
+    #[test]
+    fn write_times_read_in_the_local_clock_like_capture_times() {
+        let row = FeedRow {
+            at: "2026-12-05T08:00:00.000Z".into(),
+            kind: "failed".into(),
+            message: Some("x.png: corrupt".into()),
+            ..FeedRow::default()
+        };
+        let zone = chrono::FixedOffset::east_opt(3600).unwrap();
+        assert_eq!(
+            format_row_in(&row, &zone),
+            "2026-12-05T09:00:00.000  FAILED  x.png: corrupt"
+        );
+        assert!(!format_row(&row).contains('Z'));
     }
 
     #[test]
@@ -186,7 +233,7 @@ mod tests {
             ..FeedRow::default()
         };
         assert_eq!(
-            format_row(&row),
+            format_row_in(&row, &chrono::Utc),
             "2026-05-01T10:00:00.000  P1  SV_36  count 5  fused 4  emerged 3  new leaves 3"
         );
     }
@@ -201,8 +248,8 @@ mod tests {
             ..FeedRow::default()
         };
         assert_eq!(
-            format_row(&row),
-            "2026-12-05T08:00:00.000Z  P1  WITHDRAWN  leaf 6 withdrawn: with the newer images the fit no longer finds it"
+            format_row_in(&row, &chrono::Utc),
+            "2026-12-05T08:00:00.000  P1  WITHDRAWN  leaf 6 withdrawn: with the newer images the fit no longer finds it"
         );
     }
 
@@ -215,8 +262,8 @@ mod tests {
             ..FeedRow::default()
         };
         assert_eq!(
-            format_row(&row),
-            "2026-12-05T08:00:00Z  REFIT  timeline settings now fusion=max-side: 36 plants refitted"
+            format_row_in(&row, &chrono::Utc),
+            "2026-12-05T08:00:00.000  REFIT  timeline settings now fusion=max-side: 36 plants refitted"
         );
     }
 }
