@@ -1,7 +1,8 @@
 //! Overlays for a person to check a count: instances in distinct colours over
-//! the original image, centres marked (white crosses), leaf tips marked
-//! (white-ringed dots, models with a tip output), the count written in the
-//! corner.
+//! the original image (neighbouring leaf numbers far apart in hue), each
+//! leaf's centre marked with a black-edged white cross and its number, leaf
+//! tips marked (white-ringed dots, models with a tip output), the count
+//! written in the corner.
 
 use std::path::{Path, PathBuf};
 
@@ -33,20 +34,26 @@ pub fn render(contract: &Contract, img: &RgbImage, analysis: &Analysis, untraine
             continue;
         }
         let class = pan.segments[id as usize - 1].class;
-        let colour = contract.mask_colour(class, id as u16);
+        let colour = if class == phyllo_contract::LEAF {
+            leaf_colour(id as u32)
+        } else {
+            contract.mask_colour(class, id as u16)
+        };
         for (v, col) in p.0.iter_mut().zip(colour) {
             *v = ((u16::from(*v) + 2 * u16::from(col)) / 3) as u8;
         }
     }
     let mark = (img.width().max(img.height()) / 300).max(2) as i64;
-    for inst in &analysis.result.instances {
+    let number_scale = (mark as u32 / 2).max(1);
+    for (k, inst) in analysis.result.instances.iter().enumerate() {
         let (x, y) = (inst.centre[0] as i64, inst.centre[1] as i64);
-        for d in -mark * 2..=mark * 2 {
-            for t in -mark / 2..=mark / 2 {
-                put(&mut out, x + d, y + t, Rgb([255, 255, 255]));
-                put(&mut out, x + t, y + d, Rgb([255, 255, 255]));
-            }
-        }
+        mark_centre(&mut out, x, y, mark);
+        // The leaf's number just right of its cross, as a person reads the count.
+        let (nx, ny) = (
+            (x + 2 * mark + 2).max(0) as u32,
+            (y - 6 * number_scale as i64).max(0) as u32,
+        );
+        text(&mut out, &(k + 1).to_string(), nx, ny, number_scale);
     }
     // Leaf tips (models with a tip output): a dark dot in a white ring, small
     // enough not to hide the leaf's end, distinct from the centres' crosses.
@@ -103,6 +110,37 @@ pub fn output_path(dir: &Path, image: &Path, kind: &str) -> PathBuf {
     dir.join(format!("{stem}.{kind}.png"))
 }
 
+/// The colour of leaf instance `id`: hues a golden ratio apart, so that
+/// neighbouring numbers (often neighbouring leaves in the whorl) are far apart.
+pub fn leaf_colour(id: u32) -> [u8; 3] {
+    let h = (f64::from(id) * 0.618_033_988_75).fract() * 6.0;
+    let (s, v) = (0.85, 0.95);
+    let f = h.fract();
+    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
+    let (r, g, b) = match h as u32 {
+        0 => (v, t, p),
+        1 => (q, v, p),
+        2 => (p, v, t),
+        3 => (p, q, v),
+        4 => (t, p, v),
+        _ => (v, p, q),
+    };
+    [r, g, b].map(|c| (c * 255.0).round() as u8)
+}
+
+/// A white cross with a black edge at (x, y), arms `2 * mark` long: visible on
+/// the white chamber wall as on a dark leaf.
+fn mark_centre(img: &mut RgbImage, x: i64, y: i64, mark: i64) {
+    for (colour, grow) in [(Rgb([0, 0, 0]), 1), (Rgb([255, 255, 255]), 0)] {
+        for d in -mark * 2 - grow..=mark * 2 + grow {
+            for t in -mark / 2 - grow..=mark / 2 + grow {
+                put(img, x + d, y + t, colour);
+                put(img, x + t, y + d, colour);
+            }
+        }
+    }
+}
+
 fn put(img: &mut RgbImage, x: i64, y: i64, c: Rgb<u8>) {
     if x >= 0 && y >= 0 && (x as u32) < img.width() && (y as u32) < img.height() {
         img.put_pixel(x as u32, y as u32, c);
@@ -142,6 +180,41 @@ fn text(img: &mut RgbImage, s: &str, x: u32, y: u32, scale: u32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn neighbouring_leaves_get_hues_far_apart() {
+        let hue = |c: [u8; 3]| {
+            let [r, g, b] = c.map(f64::from);
+            let (max, min) = (r.max(g).max(b), r.min(g).min(b));
+            let d = max - min;
+            let h = if max == r {
+                ((g - b) / d).rem_euclid(6.0)
+            } else if max == g {
+                (b - r) / d + 2.0
+            } else {
+                (r - g) / d + 4.0
+            };
+            h / 6.0
+        };
+        for id in 1..20 {
+            let (a, b) = (hue(leaf_colour(id)), hue(leaf_colour(id + 1)));
+            let apart = (a - b).abs().min(1.0 - (a - b).abs());
+            assert!(apart > 0.3, "leaves {id} and {}: hues {a:.2} and {b:.2}", id + 1);
+        }
+    }
+
+    #[test]
+    fn a_centre_mark_shows_on_white_and_on_black() {
+        for bg in [255u8, 0] {
+            let mut img = RgbImage::from_pixel(40, 40, Rgb([bg; 3]));
+            mark_centre(&mut img, 20, 20, 4);
+            let other = 255 - bg;
+            // The cross's arm and its edge: one of them contrasts with the background.
+            assert_eq!(img.get_pixel(20, 14).0, [255; 3]);
+            assert!(img.pixels().any(|p| p.0 == [other; 3]), "background {bg}");
+            assert_eq!(img.get_pixel(20, 11).0, [0; 3], "the edge beyond the arm's end");
+        }
+    }
 
     #[test]
     fn an_overlay_is_named_after_its_image_and_kind() {
