@@ -35,7 +35,7 @@ pub fn render(contract: &Contract, img: &RgbImage, analysis: &Analysis, untraine
         }
         let class = pan.segments[id as usize - 1].class;
         let colour = if class == phyllo_contract::LEAF {
-            leaf_colour(id as u32)
+            leaf_colour(id)
         } else {
             contract.mask_colour(class, id as u16)
         };
