@@ -32,12 +32,6 @@ pub fn decode(text: &str) -> PathBuf {
     text.split('/').map(decode_component).collect()
 }
 
-/// True when the text form holds an escape: the name had control characters
-/// or bytes that are not UTF-8.
-pub fn is_escaped(text: &str) -> bool {
-    text.split('/').any(|c| c.contains("\\\\") || c.contains("\\x"))
-}
-
 fn encode_component(name: &OsStr) -> String {
     match name.to_str() {
         Some(s) if !s.chars().any(char::is_control) && !s.contains("\\\\") && !s.contains("\\x") => {
@@ -138,7 +132,6 @@ mod tests {
         assert_ne!(ta, tb);
         assert_eq!(ta, "P1_2019-05-10_09-18-07_Vis_SV_0\\xff.png");
         assert_eq!((decode(&ta), decode(&tb)), (a, b));
-        assert!(is_escaped(&ta));
     }
 
     #[test]
