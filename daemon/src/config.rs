@@ -140,6 +140,11 @@ pub struct InferenceConfig {
     /// Also run every tile mirrored and average the two (twice the model
     /// time; not measurably more accurate on the shipped model).
     pub flip: bool,
+    /// The side camera's zoom relative to the contract's: `"measure"` it on
+    /// the chamber's back panel (default), `"contract"`, or a number.
+    pub camera_zoom: phyllo_inference::camera_scale::CameraZoom,
+    /// Per-station zooms by file-name pattern; the first match wins.
+    pub camera_zoom_rules: Vec<phyllo_inference::station::CameraZoomRule>,
 }
 
 impl Default for InferenceConfig {
@@ -154,6 +159,8 @@ impl Default for InferenceConfig {
             max_attempts: 3,
             zoom_plant_height: None,
             flip: false,
+            camera_zoom: Default::default(),
+            camera_zoom_rules: Vec::new(),
         }
     }
 }
@@ -288,6 +295,7 @@ impl Config {
         if self.inference.queue_capacity == 0 {
             bail!("inference.queue_capacity must be at least 1");
         }
+        check_camera_zooms(&self.inference)?;
         if self.timeline.living_window.is_multiple_of(2) {
             bail!("timeline.living_window must be odd (1 disables smoothing)");
         }
@@ -336,6 +344,26 @@ impl Config {
             None => self.state_dir().join("exports"),
         }
     }
+}
+
+/// Refuses camera zooms outside the believable range, naming the setting.
+fn check_camera_zooms(cfg: &InferenceConfig) -> anyhow::Result<()> {
+    use phyllo_inference::camera_scale::CameraZoom;
+    let check = |what: String, zoom: CameraZoom| match zoom {
+        CameraZoom::Fixed(z) => CameraZoom::fixed(z)
+            .map(|_| ())
+            .map_err(|e| anyhow::anyhow!("{what}: {e}")),
+        CameraZoom::Rule(_) => Ok(()),
+    };
+    check("inference.camera_zoom".into(), cfg.camera_zoom)?;
+    for (i, rule) in cfg.camera_zoom_rules.iter().enumerate() {
+        let what = format!("inference.camera_zoom_rules[{i}] (files = {:?})", rule.files);
+        if rule.files.is_empty() {
+            bail!("{what}: `files` must be a file-name pattern such as \"81-*\"");
+        }
+        check(what, rule.camera_zoom)?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -434,6 +462,9 @@ mod tests {
             "max_attempts",
             "zoom_plant_height",
             "flip",
+            "camera_zoom",
+            "[[inference.camera_zoom_rules]]",
+            "files",
             "[timeline]",
             "fusion",
             "session_gap_minutes",

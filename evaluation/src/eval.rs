@@ -115,10 +115,15 @@ pub fn run(
     Ok(report::exit_code(&run.failed))
 }
 
-/// Loads the model, at the contract's scale on a dataset (phyllo-gen renders
-/// at it; `--scale` still overrides), warning when it is untrained.
+/// Loads the model, at the contract's scale on a dataset of crops (phyllo-gen
+/// renders them at it; `--scale` still overrides), warning when it is
+/// untrained. Whole frames go through the scale rule as a camera's would.
 fn load_counter(args: &EvalArgs, mut config: CounterConfig) -> anyhow::Result<Counter> {
-    if args.dataset.is_some() {
+    if args
+        .dataset
+        .as_deref()
+        .is_some_and(|d| !sources::holds_whole_frames(d))
+    {
         config.scale = config.scale.or(Some(1.0));
     }
     let counter = Counter::new(config)?;

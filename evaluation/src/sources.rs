@@ -18,6 +18,19 @@ pub struct DatasetItem {
     pub view: String,
 }
 
+/// Whether the data set in `dir` holds whole camera frames (`phyllo-gen
+/// dataset --full-frame`: the first row's `crop` is `[0, 0]`) rather than
+/// square crops. Unreadable or older manifests count as crops.
+pub fn holds_whole_frames(dir: &Path) -> bool {
+    let Ok(text) = std::fs::read_to_string(dir.join("manifest.jsonl")) else {
+        return false;
+    };
+    text.lines()
+        .find(|l| !l.trim().is_empty())
+        .and_then(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .is_some_and(|row| row["crop"] == serde_json::json!([0, 0]))
+}
+
 /// Reads `DIR/manifest.jsonl`, keeping rows of `split` (all rows if `None`).
 pub fn read_manifest(dir: &Path, split: Option<&str>) -> anyhow::Result<Vec<DatasetItem>> {
     let path = dir.join("manifest.jsonl");

@@ -197,6 +197,10 @@ struct RenderCmd {
     /// Leave dead leaves' remnants (dried sheath, blade stub) on the plant.
     #[arg(long)]
     dead_remnants: bool,
+    /// Side-camera zoom (1: the calibrated field of view; the facility zooms
+    /// some chambers about 2×).
+    #[arg(long, default_value_t = 1.0)]
+    zoom: f32,
 }
 
 /// The plant that `render` and `mesh` build: one set of options, so the
@@ -457,8 +461,10 @@ impl RenderCmd {
             spp,
             out,
             dead_remnants,
+            zoom,
         } = self;
         check_age(age)?;
+        sampling::ZoomRange::parse(&zoom.to_string()).map_err(anyhow::Error::msg)?;
         let mut preset = Preset::load(&preset)?;
         if dead_remnants {
             preset.growth.dead_remnant_chance = 1.0;
@@ -466,7 +472,10 @@ impl RenderCmd {
         let view = View::parse(&view).context("--view")?;
         let traits = PlantTraits::sample(&preset, seed);
         let plant = Plant::build(&traits, age);
-        let look = Look::facility();
+        let look = Look {
+            zoom,
+            ..Look::facility()
+        };
         let stage = Stage::for_preset(&plant, &preset, &look);
         let scene = Scene::new(&stage, &look, view);
         let camera = render::camera_for(view, &look, frame_height);

@@ -8,16 +8,18 @@ use phyllo_contract::Contract;
 use serde::{Deserialize, Serialize};
 
 use crate::attachment::keep_attached;
+use crate::camera_scale::{self, CameraZoom};
 use crate::decode::{decode_rgb, DecodeLimits};
 use crate::error::InferenceError;
 use crate::flip;
 use crate::model::{Model, ModelInfo, ModelOptions};
 use crate::panoptic::Panoptic;
-use crate::pieces::split_pieces;
+use crate::pieces::{drop_far_specks, split_pieces};
 use crate::postprocess::{panoptic, PostprocessParams};
 use crate::region::RegionMode;
 use crate::result::{CountResult, Instance, StageTimings};
 use crate::runtime;
+use crate::station::{camera_zoom_for, CameraZoomRule};
 use crate::stitch::{stitch, TileOutputs};
 use crate::tiling::{batch_tensor, prepare, Canvas};
 use crate::tips::CountRule;
@@ -51,6 +53,12 @@ pub struct CounterConfig {
     /// 1.0 for images already at the contract's scale, such as phyllo-gen
     /// dataset crops.
     pub scale: Option<f32>,
+    /// The side camera's zoom relative to the contract's: measured on the
+    /// chamber's back panel (the default), the contract's, or pinned.
+    pub camera_zoom: CameraZoom,
+    /// Per-station zooms by file-name pattern; the first match wins over
+    /// `camera_zoom`.
+    pub camera_zoom_rules: Vec<CameraZoomRule>,
     /// Plant height small plants are enlarged to, in model pixels (0: never
     /// enlarge); `None` takes the contract's `zoom_plant_height`.
     pub zoom_plant_height: Option<u32>,
@@ -76,6 +84,8 @@ impl Default for CounterConfig {
             batch_size: 4,
             region: RegionMode::Auto,
             scale: None,
+            camera_zoom: CameraZoom::default(),
+            camera_zoom_rules: Vec::new(),
             zoom_plant_height: None,
             max_zoom: None,
             flip: false,
@@ -190,14 +200,25 @@ impl Counter {
         let t0 = Instant::now();
         let img = decode_rgb(name, bytes, &self.config.limits)?;
         let decode_ms = ms(t0);
-        let mut analysis = self.analyse_image(&img)?;
+        let zoom = camera_zoom_for(name, &self.config.camera_zoom_rules, self.config.camera_zoom);
+        let mut analysis = self.analyse_image_at(&img, zoom)?;
         analysis.result.ms.decode = decode_ms;
         analysis.result.ms.total += decode_ms;
         Ok(analysis)
     }
 
-    /// Analyses an already decoded image.
+    /// Analyses an already decoded image with the configured camera zoom
+    /// (the file-name rules need a name: see [`Counter::analyse_bytes`]).
     pub fn analyse_image(&self, img: &RgbImage) -> Result<Analysis, InferenceError> {
+        self.analyse_image_at(img, self.config.camera_zoom)
+    }
+
+    /// Analyses an already decoded image taken with camera zoom `camera_zoom`.
+    pub fn analyse_image_at(
+        &self,
+        img: &RgbImage,
+        camera_zoom: CameraZoom,
+    ) -> Result<Analysis, InferenceError> {
         let c = self.contract;
         let mut zoom = Zoom::from_contract(c);
         if let Some(h) = self.config.zoom_plant_height {
@@ -207,7 +228,10 @@ impl Counter {
             zoom.max = m;
         }
         let mut timings = StageTimings::default();
-        let (mut canvas, mut pan) = self.pass(img, self.config.scale, &mut timings)?;
+        let t0 = Instant::now();
+        let camera = camera_scale::choose(c, img, self.config.scale, camera_zoom);
+        timings.tile += ms(t0);
+        let (mut canvas, mut pan) = self.pass(img, Some(camera.scale), &mut timings)?;
         let mut tiles = canvas.tiles.len() as u32;
         // A fixed region bounds the chamber, not the plant; only an
         // automatic one may be zoomed into.
@@ -219,8 +243,12 @@ impl Counter {
             }
         }
         let t = Instant::now();
+        // Only once the scale is settled: specks would otherwise change the
+        // plant's measured height and with it the enlargement.
+        self.tidy(&mut pan, &canvas);
         let mut result = to_result(c, &pan, &canvas, img.dimensions(), &self.config.postprocess);
         result.tiles = tiles;
+        result.camera = Some(camera);
         timings.postprocess += ms(t);
         timings.total = timings.tile + timings.inference + timings.postprocess;
         result.ms = timings;
@@ -229,6 +257,16 @@ impl Counter {
             panoptic: pan,
             canvas,
         })
+    }
+
+    /// Takes from the leaves what is not theirs without changing the count:
+    /// pixels outside the plant's box and specks far from their leaf's body.
+    fn tidy(&self, pan: &mut Panoptic, canvas: &Canvas) {
+        let p = &self.config.postprocess;
+        if let Some(plant) = canvas.plant {
+            clear_outside_plant(pan, plant, self.contract.outputs.stride);
+        }
+        drop_far_specks(pan, p.split_min_area, p.split_gap, p.speck_distance);
     }
 
     /// One pass through tiling, the model and post-processing at `scale`
@@ -278,23 +316,46 @@ impl Counter {
             self.config.postprocess.split_gap,
             self.config.postprocess.split_max_leaf_share,
         );
-        if let Some([x0, y0, x1, y1]) = canvas.plant {
-            // The chamber's frames and panels sometimes look leaf-like to the
-            // model; an instance centred outside the plant's box is not a leaf.
-            let s = f64::from(c.outputs.stride);
-            let m = PLANT_MARGIN;
-            let inside = |x: f64, y: f64| {
-                let (x, y) = (x * s, y * s);
-                x >= (x0 - m) as f64 && x < (x1 + m) as f64 && y >= (y0 - m) as f64 && y < (y1 + m) as f64
-            };
-            pan.retain(|seg| inside(f64::from(seg.centre[0]), f64::from(seg.centre[1])));
-            // The same holds for tips.
-            if let Some(tips) = pan.tips.as_mut() {
-                tips.retain(|t| inside(f64::from(t.x), f64::from(t.y)));
-            }
+        if let Some(plant) = canvas.plant {
+            keep_centred_in_plant(&mut pan, plant, c.outputs.stride);
         }
         timings.postprocess += ms(t2);
         Ok((canvas, pan))
+    }
+}
+
+/// Whether output pixel `(x, y)` lies in the plant's box (canvas pixels
+/// `[x0, y0, x1, y1]`, with `PLANT_MARGIN` of slack).
+fn in_plant(plant: [i64; 4], stride: u32, x: f64, y: f64) -> bool {
+    let [x0, y0, x1, y1] = plant;
+    let (x, y, m) = (x * f64::from(stride), y * f64::from(stride), PLANT_MARGIN);
+    x >= (x0 - m) as f64 && x < (x1 + m) as f64 && y >= (y0 - m) as f64 && y < (y1 + m) as f64
+}
+
+/// The chamber's frames and panels sometimes look leaf-like to the model:
+/// an instance, or a tip, centred outside the plant's box is not a leaf.
+fn keep_centred_in_plant(pan: &mut Panoptic, plant: [i64; 4], stride: u32) {
+    pan.retain(|seg| in_plant(plant, stride, f64::from(seg.centre[0]), f64::from(seg.centre[1])));
+    if let Some(tips) = pan.tips.as_mut() {
+        tips.retain(|t| in_plant(plant, stride, f64::from(t.x), f64::from(t.y)));
+    }
+}
+
+/// The decoder's offsets also join specks on the chamber's frames to a leaf
+/// far away: the pixels of kept instances outside the plant's box are not
+/// leaf, whichever leaf they were joined to.
+fn clear_outside_plant(pan: &mut Panoptic, plant: [i64; 4], stride: u32) {
+    let w = pan.width;
+    let mut cleared = false;
+    for (k, id) in pan.instance.iter_mut().enumerate() {
+        if *id != 0 && !in_plant(plant, stride, (k % w) as f64 + 0.5, (k / w) as f64 + 0.5) {
+            *id = 0;
+            cleared = true;
+        }
+    }
+    if cleared {
+        pan.refresh_extents();
+        pan.retain(|seg| seg.area > 0);
     }
 }
 
@@ -353,6 +414,7 @@ pub fn to_result(
         ms: StageTimings::default(),
         tip_instances,
         tips,
+        camera: None,
     }
 }
 
@@ -367,6 +429,42 @@ mod tests {
     use crate::tips::CountRule;
     use image::RgbImage;
     use phyllo_contract::LEAF;
+
+    /// Issue 44: a leaf's specks on the chamber's frame, far outside the
+    /// plant's box, are dropped from it; the leaf and its count stay.
+    #[test]
+    fn specks_outside_the_plant_leave_the_leaf_they_were_joined_to() {
+        let (w, h) = (64usize, 32usize);
+        let mut instance = vec![0u32; w * h];
+        // Leaf 1: a blade in columns 10..20, rows 10..14, and a speck at (60, 1).
+        for y in 10..14 {
+            for x in 10..20 {
+                instance[y * w + x] = 1;
+            }
+        }
+        instance[w + 60] = 1;
+        let mut pan = Panoptic {
+            height: h,
+            width: w,
+            semantic: instance.iter().map(|&i| if i > 0 { LEAF } else { 0 }).collect(),
+            instance,
+            segments: vec![Segment {
+                id: 1,
+                class: LEAF,
+                area: 41,
+                bbox: [10, 1, 61, 14],
+                centre: [15.0, 12.0],
+                score: 1.0,
+            }],
+            tips: None,
+        };
+        // The plant's box in canvas pixels (stride 2): output columns 8..24.
+        clear_outside_plant(&mut pan, [16, 16, 48, 32], 2);
+        assert_eq!(pan.segments.len(), 1);
+        assert_eq!(pan.segments[0].area, 40);
+        assert_eq!(pan.segments[0].bbox, [10, 10, 20, 14]);
+        assert_eq!(pan.instance[w + 60], 0);
+    }
 
     #[test]
     fn each_tip_names_the_leaf_it_joins_in_the_result() {

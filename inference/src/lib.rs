@@ -15,9 +15,13 @@
 //! A small plant goes through the stages twice: [`zoom`] measures it on the
 //! first pass and the second sees it enlarged.
 //!
+//! Before tiling, [`camera_scale`] measures the side camera's zoom on the
+//! chamber's back panel, so a zoomed frame is counted at the contract's scale.
+//!
 //! [`Counter`] ties the stages together; the daemon and the CLI only use it.
 
 pub mod attachment;
+pub mod camera_scale;
 pub mod counter;
 pub mod decode;
 pub mod error;
@@ -30,6 +34,7 @@ pub mod postprocess;
 pub mod region;
 pub mod result;
 pub mod runtime;
+pub mod station;
 pub mod stitch;
 pub mod tiling;
 pub mod tips;

@@ -75,12 +75,34 @@ pub fn render(contract: &Contract, img: &RgbImage, analysis: &Analysis, untraine
     if !analysis.result.tips.is_empty() {
         label.push_str(&format!(", {} tips", analysis.result.tips.len()));
     }
+    if let Some(camera) = &analysis.result.camera {
+        if let Some(panel) = &camera.panel {
+            mark_panel(&mut out, panel.left, panel.right, mark);
+        }
+        if camera.camera_zoom != 1.0 {
+            label.push_str(&format!(", zoom {:.2}", camera.camera_zoom));
+        }
+    }
     if untrained {
         label.push_str(" (UNTRAINED MODEL)");
     }
     let scale = (img.height() / 160).clamp(2, 8);
     text(&mut out, &label, 8, 8, scale);
     out
+}
+
+/// Marks the back panel's measured edges (what the camera zoom was measured
+/// on) with dashed yellow lines over the frame's upper part, where it was
+/// measured.
+fn mark_panel(out: &mut RgbImage, left: f32, right: f32, mark: i64) {
+    let h = i64::from(out.height());
+    for x in [left as i64, right as i64 - 1] {
+        for y in (h / 20..h * 3 / 5).filter(|y| (y / (4 * mark)) % 2 == 0) {
+            for dx in -(mark / 2)..=(mark / 2) {
+                put(out, x + dx, y, Rgb([255, 210, 0]));
+            }
+        }
+    }
 }
 
 /// Draws `analysis` over the image it was made from (`bytes`, read from

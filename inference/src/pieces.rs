@@ -105,6 +105,66 @@ pub fn split_pieces(pan: &mut Panoptic, min_area: u32, gap: u32, max_leaf_share:
     pan.refresh_extents();
 }
 
+/// Default distance, in output pixels, beyond which a crumb of a leaf
+/// instance is a speck: farther from the leaf's body than any blade is wide
+/// at the contract scale.
+pub const DEFAULT_SPECK_DISTANCE: u32 = 24;
+
+/// Takes from each leaf instance the pieces too small to be a leaf of their
+/// own (under `min_area` output pixels) that lie more than `distance` output
+/// pixels from its largest piece (box to box): specks on the chamber's frames
+/// that the decoder's offsets joined to a leaf far away. They leave the
+/// count alone but would draw the leaf across the frame. `distance` 0, or
+/// `min_area` 0 (splitting off), disables the stage.
+pub fn drop_far_specks(pan: &mut Panoptic, min_area: u32, gap: u32, distance: u32) {
+    if min_area == 0 || distance == 0 || pan.segments.is_empty() {
+        return;
+    }
+    let w = pan.width;
+    let mut piece = vec![0u32; w * pan.height];
+    let mut cleared = false;
+    for seg in pan.segments.clone() {
+        if seg.class != LEAF {
+            continue;
+        }
+        let pieces = label_pieces(pan, &seg, gap.max(1) as usize, &mut piece);
+        if pieces.len() < 2 {
+            continue;
+        }
+        let boxes: Vec<[usize; 4]> = pieces.iter().map(|px| pixel_box(px, w)).collect();
+        let largest = (0..pieces.len())
+            .max_by_key(|&n| (pieces[n].len(), std::cmp::Reverse(n)))
+            .expect("pieces");
+        for (n, pixels) in pieces.iter().enumerate() {
+            let far = box_gap(boxes[n], boxes[largest]) > distance as usize;
+            if n != largest && (pixels.len() as u32) < min_area && far {
+                for &k in pixels {
+                    pan.instance[k] = 0;
+                }
+                cleared = true;
+            }
+        }
+    }
+    if cleared {
+        pan.refresh_extents();
+    }
+}
+
+/// `[x0, y0, x1, y1]` (exclusive) of raster indices `pixels` in rows `w` wide.
+fn pixel_box(pixels: &[usize], w: usize) -> [usize; 4] {
+    pixels.iter().fold([usize::MAX, usize::MAX, 0, 0], |b, &k| {
+        let (x, y) = (k % w, k / w);
+        [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)]
+    })
+}
+
+/// Chebyshev gap between two boxes (0 where they touch or overlap).
+fn box_gap(a: [usize; 4], b: [usize; 4]) -> usize {
+    let dx = a[0].saturating_sub(b[2]).max(b[0].saturating_sub(a[2]));
+    let dy = a[1].saturating_sub(b[3]).max(b[1].saturating_sub(a[3]));
+    dx.max(dy)
+}
+
 /// The pieces of `seg`'s instance: its pixels grouped so that pixels up to
 /// `gap` apart (Chebyshev) share a piece, in raster order of their first
 /// pixel. Marks each pixel's piece number + 1 in `piece`.
@@ -254,6 +314,37 @@ mod tests {
             segments: vec![leaf(1, 32, [0, 0, 12, 4]), leaf(2, 8, [5, 0, 7, 4])],
             tips: None,
         }
+    }
+
+    #[test]
+    fn far_specks_leave_the_leaf_and_near_crumbs_stay() {
+        // Leaf 1: a 10x4 body at x 0..10, a 1-pixel crumb 2 columns right of
+        // it and a 1-pixel speck 30 columns right of it.
+        let (w, h) = (48, 4);
+        let mut instance = vec![0u32; w * h];
+        for y in 0..h {
+            for x in 0..10 {
+                instance[y * w + x] = 1;
+            }
+        }
+        instance[12] = 1;
+        instance[w + 40] = 1;
+        let mut pan = Panoptic {
+            height: h,
+            width: w,
+            semantic: instance.iter().map(|&i| u8::from(i > 0)).collect(),
+            instance,
+            segments: vec![leaf(1, 42, [0, 0, 41, 4])],
+            tips: None,
+        };
+        drop_far_specks(&mut pan, 8, 1, 24);
+        assert_eq!(pan.instance[w + 40], 0, "the far speck is gone");
+        assert_eq!(pan.instance[12], 1, "the near crumb stays");
+        assert_eq!((pan.segments[0].area, pan.segments[0].bbox), (41, [0, 0, 13, 4]));
+        // Disabled with splitting.
+        let before = pan.clone();
+        drop_far_specks(&mut pan, 0, 1, 0);
+        assert_eq!(pan.instance, before.instance);
     }
 
     #[test]

@@ -18,7 +18,9 @@ use phyllo_contract::{Contract, PostprocessDefaults, NUM_CLASSES};
 use serde::{Deserialize, Serialize};
 
 use crate::panoptic::{extents, TipPeak};
-use crate::pieces::{DEFAULT_SPLIT_GAP, DEFAULT_SPLIT_MAX_LEAF_SHARE, DEFAULT_SPLIT_MIN_AREA};
+use crate::pieces::{
+    DEFAULT_SPECK_DISTANCE, DEFAULT_SPLIT_GAP, DEFAULT_SPLIT_MAX_LEAF_SHARE, DEFAULT_SPLIT_MIN_AREA,
+};
 use crate::tips::{CountRule, DEFAULT_TIP_REACH};
 
 /// Re-exported because the daemon's evaluation code names them by this
@@ -91,6 +93,10 @@ pub struct PostprocessParams {
     /// shortest route to the instance's largest piece runs over another leaf
     /// (occlusion, not a second leaf); 1 splits every large piece.
     pub split_max_leaf_share: f32,
+    /// Crumbs of a leaf instance (pieces under `split_min_area`) farther
+    /// than this many output pixels from its largest piece are taken from
+    /// it: specks on the chamber joined to a far leaf (0: keep them).
+    pub speck_distance: u32,
 }
 
 /// Default [`PostprocessParams::attach_radius`]: 3 output pixels, 24 pixels
@@ -112,6 +118,7 @@ impl From<&PostprocessDefaults> for PostprocessParams {
             split_min_area: DEFAULT_SPLIT_MIN_AREA,
             split_gap: DEFAULT_SPLIT_GAP,
             split_max_leaf_share: DEFAULT_SPLIT_MAX_LEAF_SHARE,
+            speck_distance: DEFAULT_SPECK_DISTANCE,
         }
     }
 }

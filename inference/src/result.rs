@@ -2,6 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::camera_scale::CameraScale;
+
 /// One panoptic instance found in an image, in the original image's pixels.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Instance {
@@ -66,6 +68,11 @@ pub struct CountResult {
     /// so other rules can be scored offline from one run.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub tip_instances: Vec<Option<u32>>,
+    /// The scale before any small-plant enlargement, the camera zoom it
+    /// assumes and how that was found (the counter always sets it; results
+    /// written before it existed read back without it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<CameraScale>,
 }
 
 #[cfg(test)]
@@ -83,6 +90,7 @@ mod tests {
             ms: StageTimings::default(),
             tip_instances: vec![],
             tips,
+            camera: None,
         }
     }
 

@@ -23,12 +23,19 @@ use crate::region::{median_colour, plant_bbox, RegionMode};
 /// contract's crop factor, so a plant is as large as it is in frames.
 pub fn scale_for(contract: &Contract, w: u32, h: u32) -> f32 {
     let spec = &contract.input;
-    let aspect = w as f32 / h as f32;
-    if (aspect / spec.frame_aspect - 1.0).abs() <= spec.frame_aspect_tolerance && h >= spec.frame_height {
+    if is_frame(contract, w, h) {
         spec.frame_height as f32 / h as f32
     } else {
         spec.crop_scale
     }
+}
+
+/// Whether an image of `w` x `h` is a whole camera frame (the frame's aspect
+/// ratio, at least the contract's frame height) rather than a crop.
+pub fn is_frame(contract: &Contract, w: u32, h: u32) -> bool {
+    let spec = &contract.input;
+    let aspect = w as f32 / h as f32;
+    (aspect / spec.frame_aspect - 1.0).abs() <= spec.frame_aspect_tolerance && h >= spec.frame_height
 }
 
 /// Resizes `img` by `scale` with a bilinear filter (SIMD, via fast_image_resize).

@@ -302,6 +302,66 @@ fn seedlings_are_counted_again_enlarged_and_grown_plants_are_not() {
     assert_eq!(off[0]["tiles"].as_u64().unwrap(), 1, "{}", off[0]);
 }
 
+/// Issue 41: the same plant rendered at camera zoom 1 and 2 is brought to
+/// the same scale by the back panel measured in each frame, and counted
+/// alike; `--camera-zoom contract` leaves the zoomed frame at twice the
+/// size, and a pinned zoom is taken as given.
+#[test]
+fn a_zoomed_camera_is_measured_and_counted_as_the_unzoomed_one() {
+    let tmp = tempfile::tempdir().unwrap();
+    let gen = phyllo_e2e::binary("phyllo-gen", "phyllo-gen");
+    let frame = |zoom: &str| {
+        let out = tmp.path().join(format!("zoom{zoom}.png"));
+        // Four weeks old: at zoom 2 the whole plant still fits in the frame.
+        let (o, stdout, e) = run(std::process::Command::new(&gen)
+            .args([
+                "render", "--seed", "3", "--spp", "4", "--age", "28", "--zoom", zoom, "--out",
+            ])
+            .arg(&out));
+        assert!(o.status.success(), "phyllo-gen render: {e}");
+        assert!(stdout.contains("8 visible"), "{stdout}");
+        out
+    };
+    let (one, two) = (frame("1"), frame("2"));
+    let model = phyllo_e2e::repo_root().join("models/phyllo.onnx");
+    let count = |extra: &[&str]| {
+        let (out, stdout, stderr) = run(phyllo()
+            .args(["count", "--json", "--threads", "1", "--model"])
+            .arg(&model)
+            .args(extra)
+            .arg(&one)
+            .arg(&two));
+        assert!(out.status.success(), "{stderr}");
+        json_lines(&stdout)
+    };
+    let measured = count(&[]);
+    let camera = |v: &Value| v["camera"].clone();
+    for v in &measured {
+        assert_eq!(camera(v)["source"], "back-panel", "{v}");
+    }
+    assert_eq!(camera(&measured[0])["camera_zoom"].as_f64().unwrap(), 1.0);
+    let z = camera(&measured[1])["camera_zoom"].as_f64().unwrap();
+    assert!((z / 2.0 - 1.0).abs() < 0.06, "measured zoom {z}");
+    // The plant's size at the model: the scale times the true zoom.
+    let s1 = camera(&measured[0])["scale"].as_f64().unwrap();
+    let s2 = camera(&measured[1])["scale"].as_f64().unwrap() * 2.0;
+    assert!((s2 / s1 - 1.0).abs() < 0.06, "{s1} against {s2}");
+    assert_eq!(measured[0]["leaf_count"], measured[1]["leaf_count"]);
+    // The panel's edges lie about twice as far apart in the zoomed frame.
+    let width = |v: &Value| {
+        let p = &camera(v)["panel"];
+        p["right"].as_f64().unwrap() - p["left"].as_f64().unwrap()
+    };
+    assert!((width(&measured[1]) / width(&measured[0]) / 2.0 - 1.0).abs() < 0.03);
+
+    let contract = count(&["--camera-zoom", "contract"]);
+    assert_eq!(camera(&contract[1])["source"], "contract");
+    assert_eq!(camera(&contract[1])["scale"].as_f64().unwrap(), 1.0);
+    let pinned = count(&["--camera-zoom", "2"]);
+    assert_eq!(camera(&pinned[1])["source"], "pinned");
+    assert_eq!(camera(&pinned[1])["scale"].as_f64().unwrap(), 0.5);
+}
+
 /// A frame stored on its side with an EXIF orientation tag is counted as the
 /// upright frame: same size, same leaves (PNG keeps the pixels exact).
 #[test]

@@ -68,11 +68,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                     };
                     writeln!(
                         out,
-                        "{}\t{} leaves{tips}\t({} tiles, {:.0} ms)",
+                        "{}\t{} leaves{tips}\t({} tiles, {:.0} ms{})",
                         path.display(),
                         r.leaf_count,
                         r.tiles,
-                        r.ms.total
+                        r.ms.total,
+                        zoom_note(r.camera.as_ref())
                     )?;
                 }
             }
@@ -112,4 +113,21 @@ fn count_one(
             .map_err(|e| InferenceError::image(&out, format!("cannot write overlay: {e}")))?;
     }
     Ok(analysis.result)
+}
+
+/// `, camera zoom 2.0 (back panel)` where the count assumed a zoomed camera,
+/// nothing at the contract's zoom.
+fn zoom_note(camera: Option<&phyllo_inference::camera_scale::CameraScale>) -> String {
+    use phyllo_inference::camera_scale::ScaleSource;
+    match camera {
+        Some(c) if c.camera_zoom != 1.0 => {
+            let how = match c.source {
+                ScaleSource::BackPanel => "back panel",
+                ScaleSource::Pinned => "pinned",
+                ScaleSource::Contract | ScaleSource::Given => "given",
+            };
+            format!(", camera zoom {:.2} ({how})", c.camera_zoom)
+        }
+        _ => String::new(),
+    }
 }

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
+use phyllo_inference::camera_scale::CameraZoom;
 use phyllo_inference::postprocess::{PostprocessParams, DEFAULT_ATTACH_RADIUS};
 use phyllo_inference::region::RegionMode;
 use phyllo_inference::tips::{CountRule, DEFAULT_TIP_REACH};
@@ -27,6 +28,11 @@ pub struct CounterArgs {
     /// (e.g. 0.5 for crops cut from 1227x1028 half-size frames).
     #[arg(long, value_name = "FACTOR", value_parser = parse_scale)]
     pub scale: Option<f32>,
+    /// The side camera's zoom: `measure` it on the chamber's back panel
+    /// (frames; crops and frames without one take the contract's), assume
+    /// the `contract`'s, or a number such as 2 for a camera zoomed in 2×.
+    #[arg(long, value_name = "ZOOM", default_value = "measure")]
+    pub camera_zoom: CameraZoom,
     /// Count a plant again, enlarged, when its leaves span fewer than this
     /// many model pixels, so that they span it (0: never; default: the
     /// contract's).
@@ -90,6 +96,11 @@ pub struct CounterArgs {
         value_parser = parse_share,
     )]
     pub split_max_leaf_share: f32,
+    /// Post-processing: crumbs of a leaf instance too small to split off that
+    /// lie more than this many model output pixels from its body are taken
+    /// from it (specks on the chamber; 0: keep them).
+    #[arg(long, value_name = "PIXELS", default_value_t = PostprocessParams::default().speck_distance)]
+    pub speck_distance: u32,
 }
 
 impl CounterArgs {
@@ -107,6 +118,7 @@ impl CounterArgs {
             split_min_area: self.split_min_area,
             split_gap: self.split_gap,
             split_max_leaf_share: self.split_max_leaf_share,
+            speck_distance: self.speck_distance,
             ..defaults
         };
         Ok(CounterConfig {
@@ -115,6 +127,7 @@ impl CounterArgs {
             intra_threads: self.threads,
             region: parse_region(&self.region)?,
             scale: self.scale,
+            camera_zoom: self.camera_zoom,
             zoom_plant_height: self.zoom_height,
             max_zoom: self.max_zoom,
             flip: self.flip,

@@ -39,6 +39,8 @@ pub fn counter_config(cfg: &crate::config::InferenceConfig) -> phyllo_inference:
         batch_size: cfg.batch_size,
         zoom_plant_height: cfg.zoom_plant_height,
         flip: cfg.flip,
+        camera_zoom: cfg.camera_zoom,
+        camera_zoom_rules: cfg.camera_zoom_rules.clone(),
         ..phyllo_inference::CounterConfig::default()
     }
 }
@@ -62,6 +64,7 @@ impl LeafCounter for phyllo_inference::Counter {
                     "image_size": r.image_size,
                     "region": r.region,
                     "scale": r.scale,
+                    "camera": r.camera,
                 }),
                 ms_total: r.ms.total,
                 model_id: self.model_id(),
@@ -99,6 +102,8 @@ fn counting_settings(config: &phyllo_inference::CounterConfig) -> serde_json::Va
         "flip": config.flip,
         "region": config.region,
         "scale": config.scale,
+        "camera_zoom": config.camera_zoom,
+        "camera_zoom_rules": config.camera_zoom_rules,
         "postprocess": config.postprocess,
     });
     shorten_f32(&mut settings);
