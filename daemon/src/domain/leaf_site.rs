@@ -230,6 +230,32 @@ mod tests {
         assert!(locate(&[], &[view("SV_0", vec![])], 1).is_empty());
     }
 
+    /// Issue 41: a chamber whose camera zooms in mid-season: the views of
+    /// one session share the zoom and the rule compares heights within a
+    /// view as shares of the plant's height, so the site is the same leaf.
+    #[test]
+    fn a_camera_zoomed_since_the_session_before_finds_the_same_site() {
+        let old = vec![leaf(100.0, 400.0, 900), leaf(200.0, 300.0, 700)];
+        let tip = leaf(160.0, 250.0, 40);
+        let mut grown = old.clone();
+        grown.push(tip);
+        let before = [view("SV_0", old.clone()), view("SV_72", old.clone())];
+        let zoom = |leaves: &[Leaf]| -> Vec<Leaf> {
+            leaves
+                .iter()
+                .map(|l| Leaf {
+                    centre: [2.0 * l.centre[0], 2.0 * l.centre[1]],
+                    bbox: l.bbox.map(|v| 2 * v),
+                    area: 4 * l.area,
+                })
+                .collect()
+        };
+        let plain = locate(&before, &[view("SV_0", old.clone()), view("SV_72", grown.clone())], 1);
+        let zoomed = locate(&before, &[view("SV_0", zoom(&old)), view("SV_72", zoom(&grown))], 1);
+        assert_eq!((plain[0].view.as_str(), plain[0].leaf), ("SV_72", tip));
+        assert_eq!((zoomed[0].view.as_str(), zoomed[0].leaf), ("SV_72", zoom(&[tip])[0]));
+    }
+
     #[test]
     fn views_named_without_an_angle_are_ranked_last_not_a_panic() {
         let l = vec![leaf(100.0, 100.0, 50)];
