@@ -389,6 +389,28 @@ mod tests {
         assert!(format!("{err:#}").contains("unknown field"), "{err:#}");
     }
 
+    /// Issue 41: a station pins its camera's zoom, outright or by file name.
+    #[test]
+    fn camera_zooms_are_read_and_a_bad_one_names_its_rule() {
+        use phyllo_inference::camera_scale::CameraZoom;
+        let text = "drop_dir = \"/d\"\ndatabase = \"/db\"\n[inference]\ncamera_zoom = \"contract\"\n\
+                    [[inference.camera_zoom_rules]]\nfiles = \"81-*\"\ncamera_zoom = 2\n";
+        let cfg = Config::parse(text).unwrap();
+        assert_eq!(cfg.inference.camera_zoom, "contract".parse().unwrap());
+        assert_eq!(
+            cfg.inference.camera_zoom_rules[0].camera_zoom,
+            CameraZoom::Fixed(2.0)
+        );
+        let counter = crate::pipeline::counting::counter_config(&cfg.inference);
+        assert_eq!(counter.camera_zoom_rules, cfg.inference.camera_zoom_rules);
+        let bad = text.replace("camera_zoom = 2", "camera_zoom = 0.1");
+        let err = format!("{:#}", Config::parse(&bad).unwrap_err());
+        assert!(
+            err.contains("camera_zoom_rules[0]") && err.contains("81-*"),
+            "{err}"
+        );
+    }
+
     #[test]
     fn bad_values_are_refused() {
         for bad in [
@@ -403,6 +425,10 @@ mod tests {
             "[[timeline.zones]]\nname = \"h2\"\nplants = \"(\"",
             "[[timeline.zones]]\nname = \"h2\"\nplants = \"^2\"\n[[timeline.zones]]\nname = \"h2\"\nplants = \"^3\"",
             "[[timeline.zones]]\nname = \"h2\"",
+            "[inference]\ncamera_zoom = 9",
+            "[inference]\ncamera_zoom = \"guess\"",
+            "[[inference.camera_zoom_rules]]\nfiles = \"81-*\"\ncamera_zoom = 0.1",
+            "[[inference.camera_zoom_rules]]\nfiles = \"\"\ncamera_zoom = 2",
         ] {
             let text = format!("drop_dir = \"/d\"\ndatabase = \"/db\"\n{bad}\n");
             assert!(Config::parse(&text).is_err(), "accepted: {bad}");

@@ -250,10 +250,21 @@ mod tests {
                 })
                 .collect()
         };
-        let plain = locate(&before, &[view("SV_0", old.clone()), view("SV_72", grown.clone())], 1);
-        let zoomed = locate(&before, &[view("SV_0", zoom(&old)), view("SV_72", zoom(&grown))], 1);
+        let plain = locate(
+            &before,
+            &[view("SV_0", old.clone()), view("SV_72", grown.clone())],
+            1,
+        );
+        let zoomed = locate(
+            &before,
+            &[view("SV_0", zoom(&old)), view("SV_72", zoom(&grown))],
+            1,
+        );
         assert_eq!((plain[0].view.as_str(), plain[0].leaf), ("SV_72", tip));
-        assert_eq!((zoomed[0].view.as_str(), zoomed[0].leaf), ("SV_72", zoom(&[tip])[0]));
+        assert_eq!(
+            (zoomed[0].view.as_str(), zoomed[0].leaf),
+            ("SV_72", zoom(&[tip])[0])
+        );
     }
 
     #[test]
