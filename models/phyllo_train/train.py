@@ -449,7 +449,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.optimizer != "adamw":
         training_data += f" | {args.optimizer.upper()} momentum {args.momentum:g}"
     if args.encoder and args.encoder != "mobilenet":
-        training_data += f" | encoder {args.encoder}" + (" from ImageNet weights" if args.pretrained else " from scratch")
+        start = (f" from {args.init}" if args.init is not None
+                 else " from ImageNet weights" if args.pretrained else " from scratch")
+        training_data += f" | encoder {args.encoder}" + start
         if args.encoder_lr_scale != 1.0:
             training_data += f", its learning rate x{args.encoder_lr_scale:g}"
     if args.freeze_encoder is not None:
