@@ -247,6 +247,33 @@ fn unreadable_and_wrong_contract_models_are_refused_with_the_reason() {
     );
 }
 
+/// Renders plant seed 3 with `phyllo-gen render` and `args` into `dir`;
+/// returns the frame's path and what the generator said of it.
+fn render_frame(dir: &Path, args: &[&str]) -> (PathBuf, String) {
+    let gen = phyllo_e2e::binary("phyllo-gen", "phyllo-gen");
+    let out = dir.join(format!("{}.png", args.join("").replace('-', "")));
+    let (o, stdout, e) = run(std::process::Command::new(&gen)
+        .args(["render", "--seed", "3", "--spp", "4"])
+        .args(args)
+        .arg("--out")
+        .arg(&out));
+    assert!(o.status.success(), "phyllo-gen render: {e}");
+    (out, stdout)
+}
+
+/// `phyllo count --json` with the shipped model and `extra` arguments on
+/// `files`, one JSON object per file.
+fn count_shipped(extra: &[&str], files: &[&Path]) -> Vec<Value> {
+    let model = phyllo_e2e::repo_root().join("models/phyllo.onnx");
+    let (out, stdout, stderr) = run(phyllo()
+        .args(["count", "--json", "--threads", "1", "--model"])
+        .arg(&model)
+        .args(extra)
+        .args(files));
+    assert!(out.status.success(), "{stderr}");
+    json_lines(&stdout)
+}
+
 /// The contract's zoom with the shipped model: a seedling (its leaves span
 /// far fewer than `zoom_plant_height` rows) is counted a second time,
 /// enlarged to the cap, a grown plant less, and a plant that already spans
@@ -254,27 +281,9 @@ fn unreadable_and_wrong_contract_models_are_refused_with_the_reason() {
 #[test]
 fn seedlings_are_counted_again_enlarged_and_grown_plants_are_not() {
     let tmp = tempfile::tempdir().unwrap();
-    let gen = phyllo_e2e::binary("phyllo-gen", "phyllo-gen");
-    let frame = |age: &str| {
-        let out = tmp.path().join(format!("age{age}.png"));
-        let (o, _, e) = run(std::process::Command::new(&gen)
-            .args(["render", "--seed", "3", "--spp", "4", "--age", age, "--out"])
-            .arg(&out));
-        assert!(o.status.success(), "phyllo-gen render: {e}");
-        out
-    };
-    let (seedling, grown) = (frame("20"), frame("50"));
-    let model = phyllo_e2e::repo_root().join("models/phyllo.onnx");
-    let count = |extra: &[&str]| {
-        let (out, stdout, stderr) = run(phyllo()
-            .args(["count", "--json", "--threads", "1", "--model"])
-            .arg(&model)
-            .args(extra)
-            .arg(&seedling)
-            .arg(&grown));
-        assert!(out.status.success(), "{stderr}");
-        json_lines(&stdout)
-    };
+    let (seedling, _) = render_frame(tmp.path(), &["--age", "20"]);
+    let (grown, _) = render_frame(tmp.path(), &["--age", "50"]);
+    let count = |extra: &[&str]| count_shipped(extra, &[&seedling, &grown]);
     let zoomed = count(&[]);
     let seed_scale = zoomed[0]["scale"].as_f64().unwrap();
     assert!(seed_scale > 1.5 && seed_scale <= 2.0 + 1e-6, "{}", zoomed[0]);
@@ -309,31 +318,14 @@ fn seedlings_are_counted_again_enlarged_and_grown_plants_are_not() {
 #[test]
 fn a_zoomed_camera_is_measured_and_counted_as_the_unzoomed_one() {
     let tmp = tempfile::tempdir().unwrap();
-    let gen = phyllo_e2e::binary("phyllo-gen", "phyllo-gen");
+    // Four weeks old: at zoom 2 the whole plant still fits in the frame.
     let frame = |zoom: &str| {
-        let out = tmp.path().join(format!("zoom{zoom}.png"));
-        // Four weeks old: at zoom 2 the whole plant still fits in the frame.
-        let (o, stdout, e) = run(std::process::Command::new(&gen)
-            .args([
-                "render", "--seed", "3", "--spp", "4", "--age", "28", "--zoom", zoom, "--out",
-            ])
-            .arg(&out));
-        assert!(o.status.success(), "phyllo-gen render: {e}");
-        assert!(stdout.contains("8 visible"), "{stdout}");
+        let (out, said) = render_frame(tmp.path(), &["--age", "28", "--zoom", zoom]);
+        assert!(said.contains("8 visible"), "{said}");
         out
     };
     let (one, two) = (frame("1"), frame("2"));
-    let model = phyllo_e2e::repo_root().join("models/phyllo.onnx");
-    let count = |extra: &[&str]| {
-        let (out, stdout, stderr) = run(phyllo()
-            .args(["count", "--json", "--threads", "1", "--model"])
-            .arg(&model)
-            .args(extra)
-            .arg(&one)
-            .arg(&two));
-        assert!(out.status.success(), "{stderr}");
-        json_lines(&stdout)
-    };
+    let count = |extra: &[&str]| count_shipped(extra, &[&one, &two]);
     let measured = count(&[]);
     let camera = |v: &Value| v["camera"].clone();
     for v in &measured {
