@@ -78,7 +78,7 @@ class PanopticDataset(Dataset):
     def __init__(self, root: str | Path, split: str | None = "train", aug: AugmentConfig | None = None,
                  contract: Contract | None = None, seed: int = 0, limit: int | None = None,
                  small_center_weight: float = 1.0, with_tips: bool = False, max_tip_gap: float | None = None,
-                 defer_photometric: bool = False):
+                 defer_photometric: bool = False, center_sigma_min: float | None = None):
         self.root = Path(root)
         self.contract = contract or load_contract()
         self.rows = read_manifest(self.root, split)[: limit]
@@ -88,6 +88,7 @@ class PanopticDataset(Dataset):
         self.seed = seed
         self.epoch = 0
         self.small_center_weight = small_center_weight
+        self.center_sigma_min = center_sigma_min
         self.with_tips = with_tips
         if with_tips:
             missing = [r["image"] for r in self.rows if "leaf_tips" not in r]
@@ -161,7 +162,8 @@ class PanopticDataset(Dataset):
         draw = draw_photometric(cfg, rng)
         if not self.defer_photometric:
             rgb = apply_photometric(rgb, draw, plant)
-        t = make_targets(label, self.contract, window=window, small_center_weight=self.small_center_weight)
+        t = make_targets(label, self.contract, window=window, small_center_weight=self.small_center_weight,
+                         center_sigma_min=self.center_sigma_min)
         target = {
             "semantic": torch.from_numpy(t.semantic),
             "semantic_weight": torch.from_numpy(t.semantic_weight),

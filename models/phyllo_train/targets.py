@@ -10,7 +10,8 @@ Conventions (shared with the Rust decoder, see models/MODEL.md):
 * offset[:, i, j] = (cy - i, cx - j) in output pixels, on thing pixels only;
 * the centre heatmap is max over instances of exp(-d^2 / (2 sigma^2)) around
   the centre rounded to the nearest output pixel, so every peak is exactly 1
-  and sits on a pixel.
+  and sits on a pixel; with ``center_sigma_min`` a crowded centre's sigma is
+  narrowed (:func:`crowding_sigmas`). The decoder never reads sigma.
 
 Centres belong to the *whole* instance in the source image, not to the part
 visible in a crop: the daemon stitches tile outputs into one canvas and then
@@ -59,14 +60,21 @@ def downsample_label(label: np.ndarray, stride: int) -> np.ndarray:
     return out
 
 
-def gaussian_heatmap(shape: tuple[int, int], centers: np.ndarray, sigma: float) -> np.ndarray:
-    """Max of unit-peak Gaussians at the given integer (y, x) centres; drawn in 3-sigma windows."""
+def gaussian_heatmap(shape: tuple[int, int], centers: np.ndarray, sigma: float | np.ndarray) -> np.ndarray:
+    """Max of unit-peak Gaussians at the given integer (y, x) centres; drawn in 3-sigma windows.
+
+    ``sigma`` is one width for every centre or one per centre (:func:`crowding_sigmas`).
+    """
     h, w = shape
     heat = np.zeros((h, w), dtype=np.float32)
-    r = int(np.ceil(3 * sigma))
-    g1 = np.arange(-r, r + 1, dtype=np.float32)
-    g = np.exp(-(g1[:, None] ** 2 + g1[None, :] ** 2) / (2 * sigma * sigma))
-    for cy, cx in centers.astype(int):
+    sigmas = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (len(centers),))
+    kernels: dict[float, tuple[int, np.ndarray]] = {}
+    for (cy, cx), sg in zip(centers.astype(int), sigmas):
+        if sg not in kernels:
+            r = int(np.ceil(3 * sg))
+            g1 = np.arange(-r, r + 1, dtype=np.float32)
+            kernels[sg] = (r, np.exp(-(g1[:, None] ** 2 + g1[None, :] ** 2) / (2 * sg * sg)))
+        r, g = kernels[sg]
         y0, y1, x0, x1 = max(0, cy - r), min(h, cy + r + 1), max(0, cx - r), min(w, cx + r + 1)
         if y0 >= y1 or x0 >= x1:
             continue
@@ -75,9 +83,33 @@ def gaussian_heatmap(shape: tuple[int, int], centers: np.ndarray, sigma: float) 
     return heat
 
 
+# Two Gaussians of width d / 2.5 whose centres lie d apart leave a dip to 46 % of
+# the peak between them, the same for every d, so a crowded centre stays one peak.
+CROWDING_RATIO = 2.5
+
+
+def crowding_sigmas(centers: np.ndarray, sigma: float, sigma_min: float) -> np.ndarray:
+    """One Gaussian width per centre: ``sigma``, narrowed to the nearest other centre's
+    distance / :data:`CROWDING_RATIO` but never under ``sigma_min`` (output pixels).
+
+    Young leaves crowd at the whorl, where the contract's sigma-4 Gaussians of
+    neighbours 4–8 px apart blend into one blob that a per-pixel loss fits well
+    and the peak finder counts once; an isolated leaf keeps the wide target.
+    """
+    n = len(centers)
+    if n < 2 or sigma_min >= sigma:
+        return np.full(n, sigma, dtype=np.float64)
+    c = centers.astype(np.float64)
+    d2 = ((c[:, None, :] - c[None, :, :]) ** 2).sum(-1)
+    np.fill_diagonal(d2, np.inf)
+    # Rounded to 0.25 px so that the heatmap's kernels are drawn a few times, not once per centre.
+    sig = np.clip(np.sqrt(d2.min(axis=1)) / CROWDING_RATIO, sigma_min, sigma)
+    return np.round(sig * 4.0) / 4.0
+
+
 def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, int, int, int] | None = None,
                  small_area: int = 1024, small_weight: float = 3.0,
-                 small_center_weight: float = 1.0) -> Targets:
+                 small_center_weight: float = 1.0, center_sigma_min: float | None = None) -> Targets:
     """Compute all targets from a (H, W) panoptic label (class*divisor + instance).
 
     ``window`` = (y0, x0, h, w) in input pixels selects the crop the network
@@ -88,6 +120,8 @@ def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, in
     instance's centre the same way (1: the shipped recipe). Merges of small
     neighbouring leaves are most of the model's misses; their peaks are few
     pixels among many, so an unweighted MSE barely pays for them.
+    ``center_sigma_min`` narrows crowded centres' Gaussians (:func:`crowding_sigmas`);
+    None keeps the contract's sigma for all.
     """
     s, div = contract.stride, contract.label_divisor
     label = np.asarray(label).astype(np.int64)
@@ -133,7 +167,10 @@ def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, in
             if small[kk]:
                 small_centers.append(centers_int[-1])
     # Gaussians whose centre lies outside the crop still contribute their visible tail.
-    center = gaussian_heatmap((h, w), np.array(centers_int, dtype=np.int64).reshape(-1, 2), contract.center_sigma)
+    centers_arr = np.array(centers_int, dtype=np.int64).reshape(-1, 2)
+    sigma = contract.center_sigma if center_sigma_min is None else crowding_sigmas(
+        np.array(centers, dtype=np.float64).reshape(-1, 2), contract.center_sigma, center_sigma_min)
+    center = gaussian_heatmap((h, w), centers_arr, sigma)
     center_w = np.ones((h, w), dtype=np.float32)
     if small_center_weight != 1.0 and small_centers:
         r = 2.0 * contract.center_sigma

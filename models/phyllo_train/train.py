@@ -309,6 +309,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--center-sigma", type=float, default=None,
                     help="centre heatmap Gaussian sigma in output px (default: the contract's); "
                          "training only, the decoder never reads it")
+    ap.add_argument("--center-sigma-min", type=float, default=None,
+                    help="narrow crowded centres' target Gaussians to the nearest centre's distance / 2.5, "
+                         "down to this sigma in output px (default: every centre at the contract's sigma)")
     ap.add_argument("--zoom-height", type=int, default=None,
                     help="small-plant zoom height for training samples, model rows (default: the contract's "
                          "zoom_plant_height; phyllo-s10-cpu was trained at 320, before the contract's 480)")
@@ -365,6 +368,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.center_sigma <= 0:
             raise SystemExit(f"--center-sigma must be positive, got {args.center_sigma}")
         contract = dataclasses.replace(contract, center_sigma=args.center_sigma)
+    if args.center_sigma_min is not None and args.center_sigma_min <= 0:
+        raise SystemExit(f"--center-sigma-min must be positive, got {args.center_sigma_min}")
     if args.zoom_height is not None:
         if args.zoom_height < 0:
             raise SystemExit(f"--zoom-height must be 0 (off) or positive, got {args.zoom_height}")
@@ -387,7 +392,8 @@ def main(argv: list[str] | None = None) -> int:
         train_sets = [PanopticDataset(d, "train", aug, contract, seed=args.seed, limit=args.limit,
                                       small_center_weight=args.small_center_weight, with_tips=args.tips,
                                       max_tip_gap=args.max_tip_gap,
-                                      defer_photometric=args.photometric == "device") for d in args.data]
+                                      defer_photometric=args.photometric == "device",
+                                      center_sigma_min=args.center_sigma_min) for d in args.data]
     except ValueError as e:
         raise SystemExit(str(e)) from e
     if args.preload:
@@ -436,6 +442,8 @@ def main(argv: list[str] | None = None) -> int:
         opt = torch.optim.AdamW(groups, lr=args.lr)
     weights = LossWeights(1.0, args.center_weight, args.offset_weight, args.top_k, args.center_focal)
     training_data = describe_data(args.data) + (f" | {args.data_note}" if args.data_note else "")
+    if args.center_sigma_min is not None:
+        training_data += f" | crowded centres' sigma down to {args.center_sigma_min:g} output px"
     if args.center_sigma is not None:
         training_data += f" | centre sigma {args.center_sigma:g} output px"
     if args.zoom_height is not None:

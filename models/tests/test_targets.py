@@ -4,8 +4,8 @@ import numpy as np
 import torch
 
 from phyllo_train.losses import LossWeights, panoptic_loss, semantic_topk_ce
-from phyllo_train.postprocess import decode, label_leaf_count
-from phyllo_train.targets import downsample_label, make_targets
+from phyllo_train.postprocess import decode, find_centers, label_leaf_count
+from phyllo_train.targets import crowding_sigmas, downsample_label, make_targets
 
 
 def test_single_leaf_centre_and_offsets(contract):
@@ -114,6 +114,44 @@ def test_small_centre_weight_covers_small_centres_only(contract):
     assert w[by, bx] == 1.0
     # The heatmap itself is the same; only its weight changes.
     np.testing.assert_array_equal(t.center, plain.center)
+
+
+def test_crowded_centres_get_narrow_gaussians_and_lone_ones_keep_the_contracts():
+    centres = np.array([[10.0, 10.0], [10.0, 15.0], [60.0, 60.0]])
+    sig = crowding_sigmas(centres, 4.0, 2.0)
+    assert sig[0] == sig[1] == 2.0          # 5 px apart: 5 / 2.5
+    assert sig[2] == 4.0                    # alone
+    assert (crowding_sigmas(np.array([[0.0, 0.0], [0.0, 1.0]]), 4.0, 1.5) == 1.5).all()  # floor
+    assert (crowding_sigmas(centres, 4.0, 4.0) == 4.0).all()  # a floor at the sigma turns it off
+    assert crowding_sigmas(centres[:1], 4.0, 2.0).tolist() == [4.0]
+
+
+def test_crowding_keeps_two_blended_peaks_apart(contract):
+    """Two small leaves 6 output px apart: summed at the contract's sigma their Gaussians make
+    one peak (what a smooth network learns); narrowed by crowding they stay two."""
+    lab = np.zeros((128, 128), np.int32)
+    lab[40:48, 30:42] = 1 * contract.label_divisor + 1
+    lab[40:48, 42:54] = 1 * contract.label_divisor + 2
+    lone = 1 * contract.label_divisor + 3
+    lab[100:110, 90:110] = lone
+    plain = make_targets(lab, contract)
+    crowded = make_targets(lab, contract, center_sigma_min=2.0)
+    # The lone leaf's Gaussian is the contract's in both.
+    (ly, lx) = np.rint(plain.centers[2]).astype(int)
+    np.testing.assert_array_equal(plain.center[0, ly - 8:ly + 9, lx - 8:lx + 9], crowded.center[0, ly - 8:ly + 9, lx - 8:lx + 9])
+
+    def summed(sigmas):
+        gy, gx = np.mgrid[0:64, 0:64]
+        return sum(np.exp(-((gy - cy) ** 2 + (gx - cx) ** 2) / (2 * s * s)) for (cy, cx), s in zip(np.rint(plain.centers), sigmas))
+
+    def peaks(heat):
+        return len(find_centers(torch.from_numpy(heat.astype(np.float32))[None], 0.3, 7, 100))
+
+    assert peaks(summed([contract.center_sigma] * 3)) == 2
+    assert peaks(summed(crowding_sigmas(plain.centers.astype(np.float64), contract.center_sigma, 2.0))) == 3
+    # Each peak of the target stays exactly 1.
+    for cy, cx in np.rint(crowded.centers).astype(int):
+        assert crowded.center[0, cy, cx] == 1.0
 
 
 def test_centre_focal_loss_prefers_two_peaks_to_one_blob():

@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 import onnx
+import pytest
 import torch
 
 from phyllo_train import export, train
@@ -74,6 +75,19 @@ def test_frozen_batchnorm_trains_the_eval_function(tiny_dataset, tmp_path, contr
     note = after["training_data"]
     assert "BatchNorm statistics frozen" in note and "small-instance centre weight 4" in note
     assert "training zoom height 320" in note
+
+
+def test_crowded_centre_targets_train_and_say_so(tiny_dataset, tmp_path):
+    run = tmp_path / "crowd"
+    common = ["--data", str(tiny_dataset), "--out", str(run), "--crop", "64", "--batch", "2", "--workers", "0",
+              "--val-limit", "0", "--log-every", "1", "--warmup", "1", "--steps", "1"]
+    with pytest.raises(SystemExit, match="--center-sigma-min must be positive"):
+        train.main(common + ["--center-sigma-min", "0"])
+    assert train.main(common + ["--center-sigma-min", "2"]) == 0
+    out = tmp_path / "crowd.onnx"
+    assert export.main(["--checkpoint", str(run / "last.pt"), "--out", str(out), "--check-size", "64"]) == 0
+    meta = {p.key: p.value for p in onnx.load(str(out)).metadata_props}
+    assert "crowded centres' sigma down to 2 output px" in meta["phyllo.training_data"]
 
 
 def test_sgd_with_centre_focal_loss_trains_and_says_so(tiny_dataset, tmp_path, contract):
