@@ -53,10 +53,18 @@ class EpochIndexed(Dataset):
 
 class RunBatches(Sampler):
     """Batches of ``(epoch, index)`` keys for steps ``start`` .. ``total - 1`` of a run,
-    epoch after epoch, each epoch shuffled by :func:`epoch_batches`."""
+    epoch after epoch, each epoch shuffled by :func:`epoch_batches`.
 
-    def __init__(self, n: int, batch: int, seed: int, start: int, total: int):
+    With ``world`` > 1 each step's batch is split into ``world`` equal slices and
+    this sampler yields slice ``rank`` (:mod:`phyllo_train.ddp`): together the
+    processes see exactly the batches one process would.
+    """
+
+    def __init__(self, n: int, batch: int, seed: int, start: int, total: int, rank: int = 0, world: int = 1):
+        if batch % world:
+            raise ValueError(f"a batch of {batch} does not split into {world} equal slices")
         self.n, self.batch, self.seed, self.start, self.total = n, batch, seed, start, total
+        self.rank, self.slice = rank, batch // world
         self.per_epoch = n // batch
         if self.per_epoch == 0:
             raise ValueError(f"{n} samples is fewer than one batch of {batch}")
@@ -71,5 +79,5 @@ class RunBatches(Sampler):
             for b in epoch_batches(self.n, self.batch, self.seed, epoch)[step % self.per_epoch:]:
                 if step >= self.total:
                     return
-                yield [(epoch, i) for i in b]
+                yield [(epoch, i) for i in b[self.rank * self.slice:(self.rank + 1) * self.slice]]
                 step += 1

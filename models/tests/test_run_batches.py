@@ -18,6 +18,20 @@ def test_run_batches_are_the_epochs_batches_in_order_from_any_step():
     assert want[0] != want[per_epoch]  # each epoch has its own order
 
 
+def test_each_process_takes_its_slice_of_every_batch():
+    n, batch, seed = 11, 4, 7
+    whole = list(RunBatches(n, batch, seed, 2, 9))
+    slices = [list(RunBatches(n, batch, seed, 2, 9, rank=r, world=2)) for r in (0, 1)]
+    assert [a + b for a, b in zip(*slices)] == whole
+    assert all(len(b) == 2 for s in slices for b in s)
+    try:
+        RunBatches(n, 3, seed, 0, 4, rank=0, world=2)
+    except ValueError as e:
+        assert "does not split into 2" in str(e)
+    else:
+        raise AssertionError("an odd batch split in two")
+
+
 def test_epoch_indexed_addresses_each_set_and_seeds_by_epoch(tiny_dataset, contract):
     cfg = AugmentConfig(crop=64)
     a = PanopticDataset(tiny_dataset, "train", cfg, contract, seed=3, limit=2)

@@ -90,6 +90,30 @@ def test_crowded_centre_targets_train_and_say_so(tiny_dataset, tmp_path):
     assert "crowded centres' sigma down to 2 output px" in meta["phyllo.training_data"]
 
 
+def test_two_processes_train_what_one_process_trains(tiny_dataset, tmp_path):
+    """--procs 2 with a batch of 1 each takes the same steps as one process with a batch of 2:
+    the same samples, gradients averaged (BatchNorm statistics frozen, so that a slice of
+    one normalises as the pair would; plain SGD, so that equal gradients mean equal weights; no
+    offset loss, which each process normalises by its own slice's leaf pixels)."""
+    common = ["--data", str(tiny_dataset), "--crop", "64", "--workers", "0", "--val-limit", "0",
+              "--log-every", "1", "--warmup", "1", "--steps", "3", "--threads", "1", "--freeze-bn",
+              "--optimizer", "sgd", "--momentum", "0", "--lr", "0.05", "--ema", "0", "--top-k", "1",
+              "--offset-weight", "0"]
+    assert train.main(common + ["--out", str(tmp_path / "one"), "--batch", "2"]) == 0
+    assert train.main(common + ["--out", str(tmp_path / "two"), "--batch", "1", "--procs", "2"]) == 0
+    one = torch.load(tmp_path / "one" / "last.pt", weights_only=False)
+    two = torch.load(tmp_path / "two" / "last.pt", weights_only=False)
+    assert one["step"] == two["step"] == 3
+    for k, v in one["raw_model"].items():
+        if v.is_floating_point():
+            torch.testing.assert_close(two["raw_model"][k], v, rtol=1e-4, atol=1e-5, msg=k)
+    assert float(one["raw_model"]["sem_head.1.bias"].abs().sum()) > 0
+    rows = [json.loads(line) for line in (tmp_path / "two" / "log.jsonl").read_text().splitlines()]
+    assert [r["step"] for r in rows] == [1, 2, 3]  # rank 0 alone writes the log
+    with pytest.raises(SystemExit, match="--procs must be at least 1"):
+        train.main(common + ["--out", str(tmp_path / "bad"), "--procs", "0"])
+
+
 def test_sgd_with_centre_focal_loss_trains_and_says_so(tiny_dataset, tmp_path, contract):
     run = tmp_path / "sgd"
     assert train.main(["--data", str(tiny_dataset), "--out", str(run), "--crop", "64", "--batch", "2",
