@@ -1,10 +1,11 @@
 """One training run in several single-threaded CPU processes (``train --procs N``).
 
 On this project's 2-core CPU two single-threaded runs side by side train
-about 1.7x the images of one run on two threads (models/EXPERIMENTS.md,
-"Two processes, one thread each"): a step's many small depthwise and
-BatchNorm ops scale poorly across threads, processes do not share them.
-So one run is split the same way: every process takes its own slice of
+1.6x the images of one run on two threads, and one run split over two
+single-threaded processes 1.24x (models/EXPERIMENTS.md, "Two processes, one
+thread each"; `scripts/train-procs-speed.sh`): a step's many small depthwise
+and BatchNorm ops scale poorly across threads, and the split run gives back
+part of the gain waiting every step for the slower process. Every process takes its own slice of
 each step's batch (:class:`phyllo_train.run_batches.RunBatches` with
 ``rank``/``world``), the gradients are averaged over the processes once per
 step in one flat all-reduce (gloo), and rank 0 alone logs, validates and
