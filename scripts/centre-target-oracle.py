@@ -1,0 +1,69 @@
+#!/usr/bin/env python3
+"""How many leaves a centre target keeps apart once a smooth network blends it.
+
+For each label of a phyllo-gen set, every leaf's centre (centre of mass,
+output pixels) gets a Gaussian of the width a rule gives it; the Gaussians
+are *summed*, as a network whose output is smooth blends neighbours, and
+the contract's peak finder (threshold 0.3, NMS window 7) counts the peaks.
+Prints the share of images whose peak count equals their leaf count, per rule:
+the contract's sigma 4, sigma 2.5, and crowded centres narrowed
+(`train --center-sigma-min`). Not a model's score: a ceiling on what a
+blurred copy of each target can count (models/EXPERIMENTS.md, "Stage 8").
+
+    models/.venv/bin/python scripts/centre-target-oracle.py /work/data/calib-e40-mini 120
+"""
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "models"))
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+from phyllo_train.contract import load_contract  # noqa: E402
+from phyllo_train.dataset import read_label, read_manifest  # noqa: E402
+from phyllo_train.postprocess import find_centers  # noqa: E402
+from phyllo_train.targets import crowding_sigmas  # noqa: E402
+
+
+def leaf_centres(lab: np.ndarray, leaf: int, div: int, s: int) -> np.ndarray:
+    """(K, 2) centres of mass of the leaf instances of at least one output pixel, output px."""
+    ys, xs = np.nonzero((lab // div == leaf) & (lab % div > 0))
+    if len(ys) == 0:
+        return np.zeros((0, 2))
+    _, inv = np.unique(lab[ys, xs], return_inverse=True)
+    area = np.bincount(inv).astype(float)
+    cy = (np.bincount(inv, weights=ys) / area - (s - 1) / 2) / s
+    cx = (np.bincount(inv, weights=xs) / area - (s - 1) / 2) / s
+    return np.stack([cy, cx], 1)[area >= s * s]
+
+
+def main() -> int:
+    c = load_contract()
+    root = Path(sys.argv[1])
+    rows = read_manifest(root, None)[: int(sys.argv[2]) if len(sys.argv) > 2 else None]
+    labels = [read_label(root / r["label"]).astype(np.int64) for r in rows]
+    centres = [leaf_centres(lab, c.leaf, c.label_divisor, c.stride) for lab in labels]
+    rules = [("sigma 4 (the contract's)", lambda cs: np.full(len(cs), 4.0)),
+             ("sigma 2.5", lambda cs: np.full(len(cs), 2.5)),
+             ("crowded centres narrowed, min 2", lambda cs: crowding_sigmas(cs, 4.0, 2.0))]
+    print("| centre target | images | counts kept | bias |")
+    print("|---|---:|---:|---:|")
+    for name, rule in rules:
+        kept, diffs = 0, []
+        for lab, cs in zip(labels, centres):
+            h, w = lab.shape[0] // c.stride, lab.shape[1] // c.stride
+            gy, gx = np.ogrid[0:h, 0:w]
+            heat = np.zeros((h, w), np.float32)
+            for (cy, cx), sg in zip(cs, rule(cs)):
+                heat += np.exp(-((gy - cy) ** 2 + (gx - cx) ** 2) / (2 * sg * sg)).astype(np.float32)
+            n = len(find_centers(torch.from_numpy(heat)[None], 0.3, 7, 200))
+            kept += n == len(cs)
+            diffs.append(n - len(cs))
+        print(f"| {name} | {len(labels)} | {100 * kept / len(labels):.1f} % | {np.mean(diffs):+.3f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
