@@ -5,7 +5,7 @@
 //! The layout follows the pipeline: [`plant`] grows a plant and meshes it,
 //! [`render`] places it in the [`render::chamber`] and traces it into an RGB
 //! [`render::film`] plus a [`label`] image, and [`dataset`], [`sequence`] and
-//! [`bench`] drive whole runs from the [`cli`]. [`tips`] finds each visible
+//! [`bench`](mod@bench) drive whole runs from the [`cli`]. [`tips`] finds each visible
 //! leaf's apparent tip for the dataset manifest.
 
 pub mod bench;

@@ -32,7 +32,7 @@ pub struct Look {
     pub pot_albedo: [f32; 3],
     /// Floor albedo.
     pub floor_albedo: [f32; 3],
-    /// Standard deviation of Gaussian sensor noise (in [0,1] sRGB units).
+    /// Standard deviation of Gaussian sensor noise (in `[0, 1]` sRGB units).
     pub noise_sd: f32,
     /// JPEG round trip quality, if the image should carry JPEG artefacts.
     pub jpeg_quality: Option<u8>,
