@@ -1,7 +1,7 @@
 //! phyllo-evaluation: how well the model counts, on synthetic datasets with
 //! exact labels and on real images with human counts, through the same
 //! inference path as the daemon ([`eval`]); and how fast that path runs on
-//! full camera frames ([`bench`]).
+//! full camera frames ([`bench`](mod@bench)).
 //!
 //! The `phyllo eval` and `phyllo bench` subcommands parse the model options
 //! into a [`phyllo_inference::CounterConfig`] and hand the rest to
