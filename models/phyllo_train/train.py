@@ -618,7 +618,7 @@ def train_loop(args: argparse.Namespace, run: Run, train_ds: EpochIndexed, val_d
             # network (GPU or CPU) sets the pace; high, the loader workers do.
             data_wait = waited / max(1e-9, now - t_last)
             t_last, imgs_since, waited = now, 0, 0.0
-            eta = (total - step) * args.batch / max(rate, 1e-9)
+            eta = (total - step) * args.batch * world / max(rate, 1e-9)
             extra = "".join(f" {k} {run_avg[k]:.3f}" for k in ("tip", "focal") if k in run_avg)
             msg = (f"step {step}/{total} ep {epoch} | loss {run_avg['loss']:.4f} (sem {run_avg['sem']:.4f} "
                    f"ctr {run_avg['center']:.5f} off {run_avg['offset']:.3f}{extra}) | grad {run_avg['grad_norm']:.2f} | "
