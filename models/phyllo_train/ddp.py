@@ -45,8 +45,17 @@ def _entry(rank: int, main: Callable[..., int], argv: list[str], world: int, por
 
 
 def spawn(main: Callable[..., int], argv: list[str], world: int) -> int:
-    """Runs ``main(argv, rank=r, world=world)`` in ``world`` processes; 0 when all succeed."""
-    mp.spawn(_entry, args=(main, argv, world, free_port()), nprocs=world, join=True)
+    """Runs ``main(argv, rank=r, world=world)`` in ``world`` processes; 0 when all succeed.
+
+    A process that fails ends the run with its error's last line, not a second traceback.
+    """
+    try:
+        mp.spawn(_entry, args=(main, argv, world, free_port()), nprocs=world, join=True)
+    except mp.ProcessRaisedException as e:
+        lines = str(e).strip().splitlines()
+        raise SystemExit(f"training process {e.error_index} failed: {lines[-1] if lines else e}") from None
+    except mp.ProcessExitedException as e:
+        raise SystemExit(f"training process {e.error_index} exited with code {e.exit_code}") from None
     return 0
 
 

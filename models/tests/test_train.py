@@ -112,6 +112,9 @@ def test_two_processes_train_what_one_process_trains(tiny_dataset, tmp_path):
     assert [r["step"] for r in rows] == [1, 2, 3]  # rank 0 alone writes the log
     with pytest.raises(SystemExit, match="--procs must be at least 1"):
         train.main(common + ["--out", str(tmp_path / "bad"), "--procs", "0"])
+    missing = tmp_path / "no-such-set"
+    with pytest.raises(SystemExit, match="failed: .*no-such-set"):
+        train.main(["--data", str(missing), "--out", str(tmp_path / "bad"), "--procs", "2", "--threads", "1"])
 
 
 def test_sgd_with_centre_focal_loss_trains_and_says_so(tiny_dataset, tmp_path, contract):
