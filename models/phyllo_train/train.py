@@ -32,7 +32,7 @@ import torch
 from torch.utils.data import DataLoader
 
 from .augment import AugmentConfig, add_noise_args, with_noise_args
-from .contract import load_contract
+from .contract import Contract, load_contract
 from . import ddp
 from .dataset import PanopticDataset, read_label, read_manifest
 from .ema import ModelEma
@@ -419,7 +419,7 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
         print(f"preloaded {sum(len(ds) for ds in train_sets)} training pairs in {time.perf_counter() - t0:.1f} s")
     train_ds = EpochIndexed(train_sets)
     val_ds = None
-    if args.val_limit:
+    if args.val_limit and is_main:  # rank 0 alone validates
         try:
             val_ds = PanopticDataset(args.data[0], "val", AugmentConfig.none(), contract, limit=args.val_limit,
                                      with_tips=args.tips, max_tip_gap=args.max_tip_gap)
@@ -526,7 +526,7 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
               + (f" in each of {world} processes" if world > 1 else "") + f", device {device}")
         print(f"training data: {training_data}")
     run = Run(model, ema, opt, frozen, weights, contract, device, mem, training_data, rank, world)
-    return train_loop(args, run, train_ds, val_ds if is_main else None, step, best, total, per_epoch)
+    return train_loop(args, run, train_ds, val_ds, step, best, total, per_epoch)
 
 
 @dataclasses.dataclass
@@ -538,7 +538,7 @@ class Run:
     opt: torch.optim.Optimizer
     frozen: list[torch.nn.Module]
     weights: LossWeights
-    contract: object
+    contract: Contract
     device: torch.device
     mem: torch.memory_format
     training_data: str
