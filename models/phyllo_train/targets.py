@@ -107,9 +107,41 @@ def crowding_sigmas(centers: np.ndarray, sigma: float, sigma_min: float) -> np.n
     return np.round(sig * 4.0) / 4.0
 
 
+def saddle_pairs(centers: np.ndarray, max_distance: float) -> np.ndarray:
+    """(P, 2, 2) pairs of centres (y, x) at most ``max_distance`` apart, each pair once."""
+    c = np.asarray(centers, dtype=np.float64).reshape(-1, 2)
+    i, j = np.triu_indices(len(c), k=1)
+    near = ((c[i] - c[j]) ** 2).sum(-1) <= max_distance ** 2
+    return np.stack([c[i[near]], c[j[near]]], axis=1)
+
+
+def saddle_weight(shape: tuple[int, int], centers: np.ndarray, sigma: float, weight: float) -> np.ndarray:
+    """(h, w) centre-loss weight: ``weight`` on the saddle between each two centres closer than 4 sigma, else 1.
+
+    Two neighbours' target Gaussians leave a dip between them, and the dip is
+    what keeps them two peaks for the decoder. A per-pixel MSE pays for those
+    few dip pixels no more than for any other, so a network fits a blob over
+    both and the count loses a leaf (models/EXPERIMENTS.md, "What holds the
+    pretrained network back"). The saddle is the middle third of the segment
+    between the two centres, thickened to one pixel either side.
+    """
+    h, w = shape
+    out = np.ones((h, w), dtype=np.float32)
+    if weight == 1.0:
+        return out
+    for a, b in saddle_pairs(centers, 4.0 * sigma):
+        for t in np.linspace(1.0 / 3.0, 2.0 / 3.0, 5):
+            y, x = np.rint(a + t * (b - a)).astype(int)
+            y0, y1, x0, x1 = max(0, y - 1), min(h, y + 2), max(0, x - 1), min(w, x + 2)
+            if y0 < y1 and x0 < x1:
+                np.maximum(out[y0:y1, x0:x1], weight, out=out[y0:y1, x0:x1])
+    return out
+
+
 def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, int, int, int] | None = None,
                  small_area: int = 1024, small_weight: float = 3.0,
-                 small_center_weight: float = 1.0, center_sigma_min: float | None = None) -> Targets:
+                 small_center_weight: float = 1.0, center_sigma_min: float | None = None,
+                 saddle_center_weight: float = 1.0) -> Targets:
     """Compute all targets from a (H, W) panoptic label (class*divisor + instance).
 
     ``window`` = (y0, x0, h, w) in input pixels selects the crop the network
@@ -121,7 +153,8 @@ def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, in
     neighbouring leaves are most of the model's misses; their peaks are few
     pixels among many, so an unweighted MSE barely pays for them.
     ``center_sigma_min`` narrows crowded centres' Gaussians (:func:`crowding_sigmas`);
-    None keeps the contract's sigma for all.
+    None keeps the contract's sigma for all. ``saddle_center_weight`` weights the
+    centre loss on the dips between neighbouring centres (:func:`saddle_weight`; 1: off).
     """
     s, div = contract.stride, contract.label_divisor
     label = np.asarray(label).astype(np.int64)
@@ -171,7 +204,8 @@ def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, in
     sigma = contract.center_sigma if center_sigma_min is None else crowding_sigmas(
         np.array(centers, dtype=np.float64).reshape(-1, 2), contract.center_sigma, center_sigma_min)
     center = gaussian_heatmap((h, w), centers_arr, sigma)
-    center_w = np.ones((h, w), dtype=np.float32)
+    center_w = saddle_weight((h, w), np.array(centers, dtype=np.float64).reshape(-1, 2), contract.center_sigma,
+                             saddle_center_weight)
     if small_center_weight != 1.0 and small_centers:
         r = 2.0 * contract.center_sigma
         gy, gx = np.ogrid[0:h, 0:w]

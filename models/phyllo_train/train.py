@@ -283,6 +283,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--small-center-weight", type=float, default=1.0,
                     help="centre-loss weight within 2 sigma of small instances' centres (1 = off; "
                          "validation always uses 1, so its loss stays comparable)")
+    ap.add_argument("--saddle-center-weight", type=float, default=1.0,
+                    help="centre-loss weight on the dip between two centres closer than 4 sigma (1 = off; "
+                         "validation always uses 1)")
     ap.add_argument("--offset-weight", type=float, default=0.01)
     ap.add_argument("--center-focal", type=float, default=0.0,
                     help="weight of a CenterNet focal loss on the centre heatmap, added to the MSE (0 = off; "
@@ -381,6 +384,8 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
         if args.center_sigma <= 0:
             raise SystemExit(f"--center-sigma must be positive, got {args.center_sigma}")
         contract = dataclasses.replace(contract, center_sigma=args.center_sigma)
+    if args.saddle_center_weight < 1.0:
+        raise SystemExit(f"--saddle-center-weight must be at least 1, got {args.saddle_center_weight}")
     if args.center_sigma_min is not None and args.center_sigma_min <= 0:
         raise SystemExit(f"--center-sigma-min must be positive, got {args.center_sigma_min}")
     if args.zoom_height is not None:
@@ -406,7 +411,8 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
                                       small_center_weight=args.small_center_weight, with_tips=args.tips,
                                       max_tip_gap=args.max_tip_gap,
                                       defer_photometric=args.photometric == "device",
-                                      center_sigma_min=args.center_sigma_min) for d in args.data]
+                                      center_sigma_min=args.center_sigma_min,
+                                      saddle_center_weight=args.saddle_center_weight) for d in args.data]
     except ValueError as e:
         raise SystemExit(str(e)) from e
     if args.preload:
@@ -479,6 +485,8 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
         training_data += f" | encoder stem and first {args.freeze_encoder} blocks fixed"
     if args.small_center_weight != 1.0:
         training_data += f" | small-instance centre weight {args.small_center_weight:g}"
+    if args.saddle_center_weight != 1.0:
+        training_data += f" | centre weight {args.saddle_center_weight:g} on the saddles between neighbours"
     if args.tips:
         training_data += f" | tip head (width {args.tip_width}) trained jointly, weight {args.tip_weight:g}"
         if args.max_tip_gap is not None:

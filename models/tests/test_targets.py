@@ -5,7 +5,7 @@ import torch
 
 from phyllo_train.losses import LossWeights, panoptic_loss, semantic_topk_ce
 from phyllo_train.postprocess import decode, find_centers, label_leaf_count
-from phyllo_train.targets import crowding_sigmas, downsample_label, make_targets
+from phyllo_train.targets import crowding_sigmas, downsample_label, make_targets, saddle_pairs
 
 
 def test_single_leaf_centre_and_offsets(contract):
@@ -114,6 +114,26 @@ def test_small_centre_weight_covers_small_centres_only(contract):
     assert w[by, bx] == 1.0
     # The heatmap itself is the same; only its weight changes.
     np.testing.assert_array_equal(t.center, plain.center)
+
+
+def test_saddle_weight_covers_the_dip_between_near_centres_only(contract):
+    lab = np.zeros((128, 128), np.int32)
+    lab[40:48, 30:42] = 1 * contract.label_divisor + 1   # two leaves 6 output px apart
+    lab[40:48, 42:54] = 1 * contract.label_divisor + 2
+    lab[100:110, 90:110] = 1 * contract.label_divisor + 3  # far from both
+    plain = make_targets(lab, contract)
+    t = make_targets(lab, contract, saddle_center_weight=6.0)
+    np.testing.assert_array_equal(t.center, plain.center)
+    w = t.center_weight[0]
+    a, b, lone = plain.centers.astype(np.float64)
+    my, mx = np.rint((a + b) / 2).astype(int)
+    assert w[my, mx] == 6.0
+    # The dip is weighted, the peaks themselves and the lone leaf are not.
+    for cy, cx in np.rint([a, b, lone]).astype(int):
+        assert w[cy, cx] == 1.0
+    assert (w == 6.0).sum() <= 3 * 3 * 5
+    assert saddle_pairs(plain.centers, 4 * contract.center_sigma).shape == (1, 2, 2)
+    assert (make_targets(lab, contract).center_weight == 1.0).all()
 
 
 def test_crowded_centres_get_narrow_gaussians_and_lone_ones_keep_the_contracts():
