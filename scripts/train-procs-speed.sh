@@ -33,5 +33,10 @@ for cfg in "1 2" "2 1"; do
   train "p$procs" --procs "$procs" --threads "$threads"
   echo "| one run, --procs $procs --threads $threads | $procs × $threads | $((4 * procs)) | $(median "$tmp/p$procs") |"
 done
-train a --threads 1 & train b --threads 1 --seed 1 & wait
+train a --threads 1 &
+pid_a=$!
+train b --threads 1 --seed 1 &
+pid_b=$!
+wait "$pid_a"
+wait "$pid_b"
 echo "| two runs at once, --threads 1 each | 2 × 1 | 4 each | $(median "$tmp/a") + $(median "$tmp/b") |"

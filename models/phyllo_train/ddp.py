@@ -5,9 +5,9 @@ On this project's 2-core CPU two single-threaded runs side by side train
 single-threaded processes 1.24x (models/EXPERIMENTS.md, "Two processes, one
 thread each"; `scripts/train-procs-speed.sh`): a step's many small depthwise
 and BatchNorm ops scale poorly across threads; the split run gives back
-part of the gain, most likely to every step waiting for the slower process. Every process takes its own slice of
-each step's batch (:class:`phyllo_train.run_batches.RunBatches` with
-``rank``/``world``), the gradients are averaged over the processes once per
+part of the gain, most likely to every step waiting for the slower process.
+Every process takes its own slice of each step's batch
+(:class:`phyllo_train.run_batches.RunBatches` with ``rank``/``world``), the gradients are averaged over the processes once per
 step in one flat all-reduce (gloo), and rank 0 alone logs, validates and
 writes checkpoints. Each process normalises its own slice in BatchNorm, as
 data-parallel training does without synchronised BatchNorm.

@@ -107,6 +107,10 @@ def crowding_sigmas(centers: np.ndarray, sigma: float, sigma_min: float) -> np.n
     return np.round(sig * 4.0) / 4.0
 
 
+# Two centres further apart than this many sigmas leave a dip the peak finder sees anyway.
+SADDLE_REACH = 4.0
+
+
 def saddle_pairs(centers: np.ndarray, max_distance: float) -> np.ndarray:
     """(P, 2, 2) pairs of centres (y, x) at most ``max_distance`` apart, each pair once."""
     c = np.asarray(centers, dtype=np.float64).reshape(-1, 2)
@@ -116,7 +120,8 @@ def saddle_pairs(centers: np.ndarray, max_distance: float) -> np.ndarray:
 
 
 def saddle_weight(shape: tuple[int, int], centers: np.ndarray, sigma: float, weight: float) -> np.ndarray:
-    """(h, w) centre-loss weight: ``weight`` on the saddle between each two centres closer than 4 sigma, else 1.
+    """(h, w) centre-loss weight: ``weight`` on the saddle between each two centres closer than
+    :data:`SADDLE_REACH` sigmas, else 1.
 
     Two neighbours' target Gaussians leave a dip between them, and the dip is
     what keeps them two peaks for the decoder. A per-pixel MSE pays for those
@@ -129,7 +134,7 @@ def saddle_weight(shape: tuple[int, int], centers: np.ndarray, sigma: float, wei
     out = np.ones((h, w), dtype=np.float32)
     if weight == 1.0:
         return out
-    for a, b in saddle_pairs(centers, 4.0 * sigma):
+    for a, b in saddle_pairs(centers, SADDLE_REACH * sigma):
         for t in np.linspace(1.0 / 3.0, 2.0 / 3.0, 5):
             y, x = np.rint(a + t * (b - a)).astype(int)
             y0, y1, x0, x1 = max(0, y - 1), min(h, y + 2), max(0, x - 1), min(w, x + 2)
@@ -201,11 +206,11 @@ def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, in
                 small_centers.append(centers_int[-1])
     # Gaussians whose centre lies outside the crop still contribute their visible tail.
     centers_arr = np.array(centers_int, dtype=np.int64).reshape(-1, 2)
+    centers_sub = np.array(centers, dtype=np.float64).reshape(-1, 2)
     sigma = contract.center_sigma if center_sigma_min is None else crowding_sigmas(
-        np.array(centers, dtype=np.float64).reshape(-1, 2), contract.center_sigma, center_sigma_min)
+        centers_sub, contract.center_sigma, center_sigma_min)
     center = gaussian_heatmap((h, w), centers_arr, sigma)
-    center_w = saddle_weight((h, w), np.array(centers, dtype=np.float64).reshape(-1, 2), contract.center_sigma,
-                             saddle_center_weight)
+    center_w = saddle_weight((h, w), centers_sub, contract.center_sigma, saddle_center_weight)
     if small_center_weight != 1.0 and small_centers:
         r = 2.0 * contract.center_sigma
         gy, gx = np.ogrid[0:h, 0:w]

@@ -5,7 +5,7 @@ import torch
 
 from phyllo_train.losses import LossWeights, panoptic_loss, semantic_topk_ce
 from phyllo_train.postprocess import decode, find_centers, label_leaf_count
-from phyllo_train.targets import crowding_sigmas, downsample_label, make_targets, saddle_pairs
+from phyllo_train.targets import crowding_sigmas, downsample_label, make_targets, saddle_pairs, SADDLE_REACH
 
 
 def test_single_leaf_centre_and_offsets(contract):
@@ -132,7 +132,7 @@ def test_saddle_weight_covers_the_dip_between_near_centres_only(contract):
     for cy, cx in np.rint([a, b, lone]).astype(int):
         assert w[cy, cx] == 1.0
     assert (w == 6.0).sum() <= 3 * 3 * 5
-    assert saddle_pairs(plain.centers, 4 * contract.center_sigma).shape == (1, 2, 2)
+    assert saddle_pairs(plain.centers, SADDLE_REACH * contract.center_sigma).shape == (1, 2, 2)
     assert (make_targets(lab, contract).center_weight == 1.0).all()
 
 
