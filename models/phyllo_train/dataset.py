@@ -173,6 +173,8 @@ class PanopticDataset(Dataset):
             "center_weight": torch.from_numpy(t.center_weight),
             "offset": torch.from_numpy(t.offset),
             "offset_weight": torch.from_numpy(t.offset_weight),
+            # Read by distillation (phyllo_train.distill): a teacher may not know top views.
+            "top_view": torch.tensor(float(is_top_view(row))),
         }
         if self.with_tips:
             target["tip"] = torch.from_numpy(tip_heatmap(tips, window, self.contract.stride, self.contract.tip_sigma))

@@ -33,7 +33,7 @@ from torch.utils.data import DataLoader
 
 from .augment import AugmentConfig, add_noise_args, with_noise_args
 from .contract import Contract, load_contract
-from . import ddp
+from . import ddp, distill
 from .dataset import PanopticDataset, read_label, read_manifest
 from .ema import ModelEma
 from .losses import LossWeights, panoptic_loss, tip_focal_loss
@@ -337,6 +337,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--max-tip-gap", type=float, default=None,
                     help="with --tips: no tip target for leaves whose manifest leaf_tip_gaps exceeds this many "
                          "image pixels (hidden tips, which annotators do not mark)")
+    ap.add_argument("--teacher", type=Path, default=None,
+                    help="a checkpoint whose centre heatmap (and offsets, per --distill) replaces the side "
+                         "views' label targets (phyllo_train.distill says why); top views keep their labels")
+    ap.add_argument("--distill", choices=distill.MODES, default="center",
+                    help="which targets the --teacher replaces on side views")
     ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     ap.add_argument("--threads", type=int, default=2, help="torch intra-op threads (CPU), per process")
     ap.add_argument("--procs", type=int, default=1,
@@ -533,7 +538,11 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
               f"{total} steps, crop {args.crop or contract.tile}, batch {args.batch}"
               + (f" in each of {world} processes" if world > 1 else "") + f", device {device}")
         print(f"training data: {training_data}")
-    run = Run(model, ema, opt, frozen, weights, contract, device, mem, training_data, rank, world)
+    teacher = None
+    if args.teacher is not None:
+        teacher = distill.load_teacher(args.teacher, contract, device)
+        training_data += f" | side views' {args.distill} targets from teacher {args.teacher}"
+    run = Run(model, ema, opt, frozen, weights, contract, device, mem, training_data, rank, world, teacher)
     return train_loop(args, run, train_ds, val_ds, step, best, total, per_epoch)
 
 
@@ -552,6 +561,8 @@ class Run:
     training_data: str
     rank: int
     world: int
+    teacher: torch.nn.Module | None = None
+    """Supplies the side views' centre (and offset) targets when given (--teacher)."""
 
 
 def train_loop(args: argparse.Namespace, run: Run, train_ds: EpochIndexed, val_ds: PanopticDataset | None,
@@ -605,6 +616,8 @@ def train_loop(args: argparse.Namespace, run: Run, train_ds: EpochIndexed, val_d
         if args.photometric == "device":
             xs = finish_batch(xs, ts, contract)
         xs = xs.contiguous(memory_format=mem)
+        if run.teacher is not None:
+            ts = distill.teacher_targets(run.teacher, xs, ts, args.distill, args.bf16)
         _, loss, parts = forward_losses(model, xs, ts, weights, args.tip_weight, args.bf16)
         opt.zero_grad(set_to_none=True)
         loss.backward()

@@ -1,0 +1,53 @@
+"""Targets from a teacher network: the student learns the teacher's centre heatmap (and offsets).
+
+Why: a network fitted to the contract's Gaussian centre targets blends a cluster
+of young leaves into one smooth blob, and no fine-tune on those targets has raised
+a count (models/EXPERIMENTS.md, "Six levers"). s10's heatmaps count better than a
+perfect fit of those targets would; a student paid to reproduce them inherits
+the dips that keep neighbouring leaves apart. Top views keep their label targets:
+s10 never saw one and misses five leaves in them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import torch
+
+from .contract import Contract
+from .model import architecture_kwargs, build_model
+
+MODES = ("center", "center+offset")
+"""Which targets the teacher replaces on side views."""
+
+
+def load_teacher(path: str | Path, contract: Contract, device: torch.device) -> torch.nn.Module:
+    """The checkpoint's network (its ``model`` weights, layout from its ``args``), frozen in eval mode."""
+    ckpt = torch.load(str(path), map_location="cpu", weights_only=False)
+    model = build_model(contract.num_classes, seed=None, **architecture_kwargs(ckpt.get("args") or {}))
+    model.load_state_dict(ckpt["model"])
+    model.eval().to(device, memory_format=torch.channels_last)
+    for p in model.parameters():
+        p.requires_grad_(False)
+    return model
+
+
+@torch.no_grad()
+def teacher_targets(teacher: torch.nn.Module, xs: torch.Tensor, ts: dict[str, torch.Tensor], mode: str,
+                    bf16: bool = False) -> dict[str, torch.Tensor]:
+    """``ts`` with the side views' centre (and, in ``center+offset`` mode, offset) targets
+    replaced by the teacher's outputs on the same normalised batch ``xs``.
+
+    Samples whose ``top_view`` flag is set keep their label targets. The weights are the
+    label's: padding outside the crop stays unpaid, as before.
+    """
+    if mode not in MODES:
+        raise ValueError(f"distillation mode must be one of {MODES}, got {mode!r}")
+    with torch.autocast(xs.device.type, dtype=torch.bfloat16, enabled=bf16):
+        _, center, offset = teacher(xs)
+    side = (ts["top_view"] < 0.5).view(-1, 1, 1, 1)
+    out = dict(ts)
+    out["center"] = torch.where(side, center.float(), ts["center"])
+    if mode == "center+offset":
+        out["offset"] = torch.where(side, offset.float(), ts["offset"])
+    return out
