@@ -39,14 +39,17 @@ def parse_spec(spec: str) -> tuple[Path, float]:
 
 
 @torch.no_grad()
-def outputs(path: Path, ds: PanopticDataset, batch: int, scale: float) -> list[tuple[torch.Tensor, ...]]:
-    """Per image: (semantic, centre x ``scale``, offset) of the checkpoint's network."""
+def outputs(path: Path, ds: PanopticDataset, batch: int, scale: float,
+            bf16: bool = False) -> list[tuple[torch.Tensor, ...]]:
+    """Per image: (semantic, centre x ``scale``, offset) of the checkpoint's network,
+    under bfloat16 autocast with ``bf16`` (as `train --bf16` runs it)."""
     model, _ = load_checkpoint_model(path, ds.contract)
     model.eval()
     res = []
     for i in range(0, len(ds), batch):
         xs, _ = collate([ds[j] for j in range(i, min(len(ds), i + batch))])
-        sem, ctr, off = model(xs.contiguous(memory_format=torch.channels_last))
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+            sem, ctr, off = (o.float() for o in model(xs.contiguous(memory_format=torch.channels_last)))
         res += [(sem[b], ctr[b] * scale, off[b]) for b in range(len(xs))]
     return res
 
@@ -68,6 +71,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--limit", type=int, default=120, help="first N images of the split")
     ap.add_argument("--batch", type=int, default=4)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--bf16", action="store_true",
+                    help="run both networks under bfloat16 autocast, as training with --bf16 sees them")
     args = ap.parse_args(argv)
     torch.set_num_threads(args.threads)
     contract = load_contract()
@@ -77,8 +82,8 @@ def main(argv: list[str] | None = None) -> int:
     nets = {}
     for name, spec in (("A", args.a), ("B", args.b)):
         path, thr = parse_spec(spec)
-        nets[name] = outputs(path, ds, args.batch, cut / thr)
-        print(f"{name} = {path} (centre threshold {thr:g})")
+        nets[name] = outputs(path, ds, args.batch, cut / thr, args.bf16)
+        print(f"{name} = {path} (centre threshold {thr:g}{', bfloat16 autocast' if args.bf16 else ''})")
     truth = [label_leaf_count(read_label(ds.root / row["label"]), contract) for row in ds.rows]
     print(f"\n{len(ds)} images of {args.data} ({args.split})\n")
     print("| semantic | centre | offset | exact | within ±1 | RMSE | bias |\n|---|---|---|---:|---:|---:|---:|")

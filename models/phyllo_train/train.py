@@ -617,7 +617,7 @@ def train_loop(args: argparse.Namespace, run: Run, train_ds: EpochIndexed, val_d
             xs = finish_batch(xs, ts, contract)
         xs = xs.contiguous(memory_format=mem)
         if run.teacher is not None:
-            ts = distill.teacher_targets(run.teacher, xs, ts, args.distill, args.bf16)
+            ts = distill.teacher_targets(run.teacher, xs, ts, args.distill)
         _, loss, parts = forward_losses(model, xs, ts, weights, args.tip_weight, args.bf16)
         opt.zero_grad(set_to_none=True)
         loss.backward()

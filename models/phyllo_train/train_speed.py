@@ -22,9 +22,9 @@ import torch
 from .augment import AugmentConfig
 from .dataset import PanopticDataset
 from .losses import LossWeights
-from .model import build_model
+from .model import ENCODERS, build_model
 from .photometric_torch import finish_batch
-from .train import collate, forward_losses
+from .train import collate, forward_losses, freeze_encoder, set_train_mode
 
 
 def loader_rate(ds: PanopticDataset, samples: int) -> float:
@@ -49,11 +49,15 @@ def device_photometric_times(ds: PanopticDataset, batch: int, rounds: int) -> li
     return times
 
 
-def step_times(ds: PanopticDataset, batch: int, steps: int, rounds: int = 2) -> dict[bool, list[float]]:
-    """Seconds per optimiser step, float32 (False) and bfloat16 autocast (True), alternated."""
+def step_times(ds: PanopticDataset, batch: int, steps: int, rounds: int = 2, encoder: str | None = None,
+               frozen_blocks: int | None = None) -> dict[bool, list[float]]:
+    """Seconds per optimiser step, float32 (False) and bfloat16 autocast (True), alternated,
+    of the network with ``encoder`` (default s10's) and its first ``frozen_blocks`` fixed."""
     torch.manual_seed(0)
-    model = build_model(ds.contract.num_classes, seed=0).to(memory_format=torch.channels_last).train()
-    opt = torch.optim.AdamW(model.parameters(), lr=1e-5)
+    model = build_model(ds.contract.num_classes, seed=0, encoder=encoder).to(memory_format=torch.channels_last)
+    frozen = freeze_encoder(model, frozen_blocks) if frozen_blocks is not None else []
+    set_train_mode(model, False, frozen)
+    opt = torch.optim.AdamW([p for p in model.parameters() if p.requires_grad], lr=1e-5)
     xs, ts = collate([ds[i % len(ds)] for i in range(batch)])
     xs = xs.contiguous(memory_format=torch.channels_last)
     weights = LossWeights()
@@ -95,6 +99,9 @@ def main(argv=None) -> None:
     ap.add_argument("--threads", type=int, default=2, help="torch threads for the steps (the loader uses one)")
     ap.add_argument("--samples", type=int, default=24, help="samples the loader makes")
     ap.add_argument("--steps", type=int, default=6, help="timed steps per precision and round (two rounds)")
+    ap.add_argument("--encoder", choices=ENCODERS, default=None, help="the network's encoder (default: s10's)")
+    ap.add_argument("--freeze-encoder", type=int, default=None, metavar="BLOCKS",
+                    help="as train's: the pretrained encoder's stem and first BLOCKS blocks fixed")
     args = ap.parse_args(argv)
     ds = PanopticDataset(args.data, "train", AugmentConfig(crop=args.crop), seed=19)
     deferred = PanopticDataset(args.data, "train", AugmentConfig(crop=args.crop), seed=19, defer_photometric=True)
@@ -109,9 +116,11 @@ def main(argv=None) -> None:
     rate, rate_deferred, rate_preloaded = (statistics.median(rates[k]) for k in kinds)
     torch.set_num_threads(args.threads)
     photometric = statistics.median(device_photometric_times(deferred, args.batch, args.steps))
-    times = step_times(ds, args.batch, args.steps)
+    times = step_times(ds, args.batch, args.steps, encoder=args.encoder, frozen_blocks=args.freeze_encoder)
     fp32, bf16 = (statistics.median(times[k]) for k in (False, True))
-    print(f"{args.crop}² crops, batch {args.batch}, {args.threads} torch threads, "
+    print(f"{args.encoder or 'mobilenet'} encoder"
+          + (f" (stem and {args.freeze_encoder} blocks fixed)" if args.freeze_encoder is not None else "")
+          + f", {args.crop}² crops, batch {args.batch}, {args.threads} torch threads, "
           f"CPU: {torch.backends.cpu.get_cpu_capability()}, bfloat16 instructions: {cpu_bf16_flags()}")
     print()
     print("| stage | ms per sample | samples/s | relative |")
