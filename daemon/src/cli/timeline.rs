@@ -21,11 +21,11 @@ pub struct Args {
     /// Also draw the timeline into this PNG.
     #[arg(long, value_name = "OUT.png", requires = "plant")]
     plot: Option<PathBuf>,
-    /// Draw every plant's timeline into DIR/<plant>.png.
+    /// Draw every plant's timeline into `DIR/<plant>.png`.
     #[arg(long, value_name = "DIR", conflicts_with_all = ["plant", "plot", "json"])]
     plots: Option<PathBuf>,
     /// Draw where each new leaf emerged on the image it was found in, into
-    /// DIR/<plant>-leaf-<NN>.png (images read from the drop directory).
+    /// `DIR/<plant>-leaf-<NN>.png` (images read from the drop directory).
     #[arg(long, value_name = "DIR", requires = "plant")]
     sites: Option<PathBuf>,
     /// Plot against the degree-days of the imported temperature log (above
