@@ -342,6 +342,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "views' label targets (phyllo_train.distill says why); top views keep their labels")
     ap.add_argument("--distill", choices=distill.MODES, default="center",
                     help="which targets the --teacher replaces on side views")
+    ap.add_argument("--distill-peak-weight", type=float, default=0.0,
+                    help="with --teacher: weigh the side views' centre loss by 1 + W x the teacher's heatmap "
+                         "(0 = off), so its peaks outweigh the background")
     ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     ap.add_argument("--threads", type=int, default=2, help="torch intra-op threads (CPU), per process")
     ap.add_argument("--procs", type=int, default=1,
@@ -617,7 +620,7 @@ def train_loop(args: argparse.Namespace, run: Run, train_ds: EpochIndexed, val_d
             xs = finish_batch(xs, ts, contract)
         xs = xs.contiguous(memory_format=mem)
         if run.teacher is not None:
-            ts = distill.teacher_targets(run.teacher, xs, ts, args.distill)
+            ts = distill.teacher_targets(run.teacher, xs, ts, args.distill, args.distill_peak_weight)
         _, loss, parts = forward_losses(model, xs, ts, weights, args.tip_weight, args.bf16)
         opt.zero_grad(set_to_none=True)
         loss.backward()

@@ -15,6 +15,7 @@ def test_teacher_replaces_side_view_targets_only(contract):
     ts = {
         "center": torch.zeros(2, 1, 32, 32),
         "offset": torch.full((2, 2, 32, 32), 3.0),
+        "center_weight": torch.ones(2, 1, 32, 32),
         "top_view": torch.tensor([0.0, 1.0]),
     }
     with torch.no_grad():
@@ -26,6 +27,10 @@ def test_teacher_replaces_side_view_targets_only(contract):
     both = distill.teacher_targets(teacher, xs, ts, "center+offset")
     torch.testing.assert_close(both["offset"][0], want_offset[0])
     assert torch.equal(both["offset"][1], ts["offset"][1])
+    assert torch.equal(both["center_weight"], ts["center_weight"])  # no peak weight asked
+    peaked = distill.teacher_targets(teacher, xs, ts, "center", peak_weight=10.0)
+    torch.testing.assert_close(peaked["center_weight"][0], 1 + 10 * want_center[0].clamp(0, 1))
+    assert torch.equal(peaked["center_weight"][1], ts["center_weight"][1])
 
 
 def test_training_with_a_teacher_loads_it_frozen_and_says_so(tiny_dataset, tmp_path, contract):
