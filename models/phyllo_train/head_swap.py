@@ -60,24 +60,36 @@ def agreement(errs: list[int]) -> tuple[float, float, float, float]:
     return float(np.mean(e == 0)), float(np.mean(np.abs(e) <= 1)), float(np.sqrt(np.mean(e ** 2))), float(e.mean())
 
 
-def main(argv: list[str] | None = None) -> int:
-    """CLI entry point: prints a Markdown table, one row per combination of heads."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.head_swap", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("a", help="network A: CHECKPOINT:CENTRE_THRESHOLD")
-    ap.add_argument("b", help="network B: CHECKPOINT:CENTRE_THRESHOLD")
+def pair_parser(prog: str, doc: str, first: str, second: str, limit: int) -> argparse.ArgumentParser:
+    """The command line shared by the tools that compare two networks on whole tiles:
+    the two ``CHECKPOINT:CENTRE_THRESHOLD`` specs and the dataset options."""
+    ap = argparse.ArgumentParser(prog=prog, description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    for spec in (first, second):  # "dest: what it is"
+        dest, _, what = spec.partition(": ")
+        ap.add_argument(dest, help=f"{what}: CHECKPOINT:CENTRE_THRESHOLD")
     ap.add_argument("--data", type=Path, required=True, help="phyllo-gen dataset")
     ap.add_argument("--split", default="val", help="manifest split, or 'all'")
-    ap.add_argument("--limit", type=int, default=120, help="first N images of the split")
-    ap.add_argument("--batch", type=int, default=4)
+    ap.add_argument("--limit", type=int, default=limit, help="first N images of the split")
     ap.add_argument("--threads", type=int, default=2)
+    return ap
+
+
+def open_tiles(args: argparse.Namespace, contract) -> PanopticDataset:
+    """The dataset :func:`pair_parser`'s options named, without augmentation; sets the torch threads."""
+    torch.set_num_threads(args.threads)
+    return PanopticDataset(args.data, None if args.split == "all" else args.split, AugmentConfig.none(), contract,
+                           limit=args.limit)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """CLI entry point: prints a Markdown table, one row per combination of heads."""
+    ap = pair_parser("python -m phyllo_train.head_swap", __doc__, "a: network A", "b: network B", limit=120)
+    ap.add_argument("--batch", type=int, default=4)
     ap.add_argument("--bf16", action="store_true",
                     help="run both networks under bfloat16 autocast, as training with --bf16 sees them")
     args = ap.parse_args(argv)
-    torch.set_num_threads(args.threads)
     contract = load_contract()
-    ds = PanopticDataset(args.data, None if args.split == "all" else args.split, AugmentConfig.none(), contract,
-                         limit=args.limit)
+    ds = open_tiles(args, contract)
     cut = float(contract.raw["postprocess"]["center_threshold"])
     nets = {}
     for name, spec in (("A", args.a), ("B", args.b)):

@@ -13,16 +13,11 @@ within that radius (and the reverse), each cut at its own threshold.
 
 from __future__ import annotations
 
-import argparse
-from pathlib import Path
-
 import torch
 from torch.nn import functional as F
 
-from .augment import AugmentConfig
 from .contract import load_contract
-from .dataset import PanopticDataset
-from .head_swap import outputs, parse_spec
+from .head_swap import open_tiles, outputs, pair_parser, parse_spec
 from .postprocess import find_centers
 
 
@@ -44,21 +39,13 @@ def matched(peaks: torch.Tensor, other: torch.Tensor, radius: int) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point: prints one Markdown table row."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.peak_match", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("reference", help="the reference network (the teacher): CHECKPOINT:CENTRE_THRESHOLD")
-    ap.add_argument("other", help="the network compared with it: CHECKPOINT:CENTRE_THRESHOLD")
-    ap.add_argument("--data", type=Path, required=True, help="phyllo-gen dataset")
-    ap.add_argument("--split", default="val", help="manifest split, or 'all'")
-    ap.add_argument("--limit", type=int, default=60, help="first N images of the split")
+    ap = pair_parser("python -m phyllo_train.peak_match", __doc__, "reference: the reference network (the teacher)",
+                     "other: the network compared with it", limit=60)
     ap.add_argument("--radius", type=int, default=2, help="output pixels that count as near a peak")
-    ap.add_argument("--threads", type=int, default=2)
     args = ap.parse_args(argv)
-    torch.set_num_threads(args.threads)
     contract = load_contract()
     pp = contract.raw["postprocess"]
-    ds = PanopticDataset(args.data, None if args.split == "all" else args.split, AugmentConfig.none(), contract,
-                         limit=args.limit)
+    ds = open_tiles(args, contract)
     (ref_path, ref_thr), (oth_path, oth_thr) = parse_spec(args.reference), parse_spec(args.other)
     ref, oth = outputs(ref_path, ds, 4, 1.0), outputs(oth_path, ds, 4, 1.0)
     sq_near = sq_far = n_near = n_far = 0.0
