@@ -158,8 +158,9 @@ class PanopticDataset(Dataset):
             gaps = row.get("leaf_tip_gaps", {})
             tip_items = [(k, v) for k, v in tip_items if gaps.get(k, 0.0) <= self.max_tip_gap]
         tips = np.array([v for _, v in tip_items], np.float64).reshape(-1, 2)
+        top_view = is_top_view(row)
         rgb, label, window, tips, plant = augment_geometry(
-            img, label, cfg, rng, top_view=is_top_view(row), label_divisor=self.contract.label_divisor,
+            img, label, cfg, rng, top_view=top_view, label_divisor=self.contract.label_divisor,
             zoom=(self.contract.zoom_plant_height, self.contract.max_zoom), points=tips)
         draw = draw_photometric(cfg, rng)
         if not self.defer_photometric:
@@ -174,7 +175,7 @@ class PanopticDataset(Dataset):
             "offset": torch.from_numpy(t.offset),
             "offset_weight": torch.from_numpy(t.offset_weight),
             # Read by distillation (phyllo_train.distill): a teacher may not know top views.
-            "top_view": torch.tensor(float(is_top_view(row))),
+            "top_view": torch.tensor(float(top_view)),
         }
         if self.with_tips:
             target["tip"] = torch.from_numpy(tip_heatmap(tips, window, self.contract.stride, self.contract.tip_sigma))

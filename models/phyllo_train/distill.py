@@ -15,7 +15,7 @@ from pathlib import Path
 import torch
 
 from .contract import Contract
-from .model import architecture_kwargs, build_model
+from .export import load_checkpoint_model
 
 MODES = ("center", "center+offset")
 """Which targets the teacher replaces on side views."""
@@ -23,9 +23,7 @@ MODES = ("center", "center+offset")
 
 def load_teacher(path: str | Path, contract: Contract, device: torch.device) -> torch.nn.Module:
     """The checkpoint's network (its ``model`` weights, layout from its ``args``), frozen in eval mode."""
-    ckpt = torch.load(str(path), map_location="cpu", weights_only=False)
-    model = build_model(contract.num_classes, seed=None, **architecture_kwargs(ckpt.get("args") or {}))
-    model.load_state_dict(ckpt["model"])
+    model, _ = load_checkpoint_model(path, contract)
     model.eval().to(device, memory_format=torch.channels_last)
     for p in model.parameters():
         p.requires_grad_(False)
@@ -50,13 +48,13 @@ def teacher_targets(teacher: torch.nn.Module, xs: torch.Tensor, ts: dict[str, to
     """
     if mode not in MODES:
         raise ValueError(f"distillation mode must be one of {MODES}, got {mode!r}")
-    _, center, offset = teacher(xs)
+    _, center, offset = teacher(xs)[:3]  # a tip network adds a fourth output
     side = (ts["top_view"] < 0.5).view(-1, 1, 1, 1)
     out = dict(ts)
-    out["center"] = torch.where(side, center.float(), ts["center"])
+    out["center"] = torch.where(side, center, ts["center"])
     if peak_weight > 0:
-        peaks = ts["center_weight"] * (1.0 + peak_weight * center.float().clamp(0.0, 1.0))
+        peaks = ts["center_weight"] * (1.0 + peak_weight * center.clamp(0.0, 1.0))
         out["center_weight"] = torch.where(side, peaks, ts["center_weight"])
     if mode == "center+offset":
-        out["offset"] = torch.where(side, offset.float(), ts["offset"])
+        out["offset"] = torch.where(side, offset, ts["offset"])
     return out

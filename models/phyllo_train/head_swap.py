@@ -19,14 +19,13 @@ import argparse
 import itertools
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from .augment import AugmentConfig
 from .contract import load_contract
 from .dataset import PanopticDataset, read_label
 from .export import load_checkpoint_model
-from .postprocess import decode, label_leaf_count
+from .postprocess import count_agreement, decode, label_leaf_count
 from .train import collate
 
 
@@ -52,12 +51,6 @@ def outputs(path: Path, ds: PanopticDataset, batch: int, scale: float,
             sem, ctr, off = (o.float() for o in model(xs.contiguous(memory_format=torch.channels_last)))
         res += [(sem[b], ctr[b] * scale, off[b]) for b in range(len(xs))]
     return res
-
-
-def agreement(errs: list[int]) -> tuple[float, float, float, float]:
-    """Exact, within one, RMSE, bias of count errors."""
-    e = np.array(errs, float)
-    return float(np.mean(e == 0)), float(np.mean(np.abs(e) <= 1)), float(np.sqrt(np.mean(e ** 2))), float(e.mean())
 
 
 def pair_parser(prog: str, doc: str, first: str, second: str, limit: int) -> argparse.ArgumentParser:
@@ -104,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
         for i, t in enumerate(truth):
             heads = [nets[src][i][k] for k, src in enumerate(combo)]
             errs.append(decode(*heads, contract).leaf_count - t)
-        ex, w1, rmse, bias = agreement(errs)
+        ex, w1, rmse, bias = count_agreement(errs)
         print(f"| {' | '.join(combo)} | {100 * ex:.1f} % | {100 * w1:.1f} % | {rmse:.3f} | {bias:+.3f} |", flush=True)
     return 0
 

@@ -75,3 +75,9 @@ def label_leaf_count(label: np.ndarray, contract: Contract) -> int:
     div = contract.label_divisor
     ids, counts = np.unique(low[(low // div == contract.leaf) & (low % div > 0)], return_counts=True)
     return int((counts >= int(contract.raw["postprocess"]["min_leaf_area"])).sum())
+
+
+def count_agreement(errs: list[int]) -> tuple[float, float, float, float]:
+    """Exact share, share within one, RMSE and bias of per-image count errors (predicted − true)."""
+    e = np.array(errs, dtype=float)
+    return float(np.mean(e == 0)), float(np.mean(np.abs(e) <= 1)), float(np.sqrt(np.mean(e ** 2))), float(e.mean())

@@ -41,7 +41,7 @@ from .encoders import load_pretrained
 from .model import ENCODERS, TipNet, architecture_kwargs, build_model, count_parameters, grow_state, with_tip_head
 from .photometric_torch import finish_batch
 from .run_batches import EpochIndexed, RunBatches
-from .postprocess import decode, label_leaf_count
+from .postprocess import count_agreement, decode, label_leaf_count
 
 
 def seed_everything(seed: int) -> None:
@@ -249,10 +249,8 @@ def evaluate(model: torch.nn.Module, ds: PanopticDataset, device: torch.device, 
             pred = decode(out[0][b].cpu(), out[1][b].cpu(), out[2][b].cpu(), contract).leaf_count
             errs.append(pred - int(truth))
         n += len(xs)
-    e = np.array(errs)
     res = {f"val_{k}": v / n for k, v in sums.items()}
-    res.update(val_exact=float(np.mean(e == 0)), val_within1=float(np.mean(np.abs(e) <= 1)),
-               val_rmse=float(np.sqrt(np.mean(e.astype(float) ** 2))), val_bias=float(np.mean(e)))
+    res.update(zip(("val_exact", "val_within1", "val_rmse", "val_bias"), count_agreement(errs)))
     model.train()
     return res
 
@@ -500,6 +498,11 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
         if args.max_tip_gap is not None:
             training_data += f", tips with a gap over {args.max_tip_gap:g} px left out"
 
+    teacher = None
+    if args.teacher is not None:
+        teacher = distill.load_teacher(args.teacher, contract, device)
+        training_data += f" | side views' {args.distill} targets from teacher {args.teacher}"
+
     step, best = 0, float("inf")
     last = args.out / "last.pt"
     if last.exists() and not args.no_resume:
@@ -541,10 +544,6 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
               f"{total} steps, crop {args.crop or contract.tile}, batch {args.batch}"
               + (f" in each of {world} processes" if world > 1 else "") + f", device {device}")
         print(f"training data: {training_data}")
-    teacher = None
-    if args.teacher is not None:
-        teacher = distill.load_teacher(args.teacher, contract, device)
-        training_data += f" | side views' {args.distill} targets from teacher {args.teacher}"
     run = Run(model, ema, opt, frozen, weights, contract, device, mem, training_data, rank, world, teacher)
     return train_loop(args, run, train_ds, val_ds, step, best, total, per_epoch)
 

@@ -4,6 +4,7 @@ import pytest
 import torch
 
 from phyllo_train import head_swap, peak_match
+from phyllo_train.postprocess import count_agreement
 
 
 def test_peaks_match_within_the_radius_only():
@@ -25,6 +26,6 @@ def test_head_swap_reads_threshold_specs_and_scores_errors():
     assert str(path) == "runs/x:y/last.pt" and thr == 0.15
     with pytest.raises(SystemExit):
         head_swap.parse_spec("last.pt")
-    exact, within1, rmse, bias = head_swap.agreement([0, 1, -2, 0])
+    exact, within1, rmse, bias = count_agreement([0, 1, -2, 0])
     assert (exact, within1, bias) == (0.5, 0.75, -0.25)
     assert rmse == pytest.approx((5 / 4) ** 0.5)
