@@ -145,6 +145,10 @@ pub struct InferenceConfig {
     pub camera_zoom: phyllo_inference::camera_scale::CameraZoom,
     /// Per-station zooms by file-name pattern; the first match wins.
     pub camera_zoom_rules: Vec<phyllo_inference::station::CameraZoomRule>,
+    /// `[inference.top_views]`: which file names are top views (`files`),
+    /// the model that counts them (`model`: `"default"`, `"none"` or a file)
+    /// and its `center_threshold`.
+    pub top_views: phyllo_inference::top_view::TopViewConfig,
 }
 
 impl Default for InferenceConfig {
@@ -161,6 +165,7 @@ impl Default for InferenceConfig {
             flip: false,
             camera_zoom: Default::default(),
             camera_zoom_rules: Vec::new(),
+            top_views: Default::default(),
         }
     }
 }
@@ -296,6 +301,7 @@ impl Config {
             bail!("inference.queue_capacity must be at least 1");
         }
         check_camera_zooms(&self.inference)?;
+        check_top_views(&self.inference)?;
         if self.timeline.living_window.is_multiple_of(2) {
             bail!("timeline.living_window must be odd (1 disables smoothing)");
         }
@@ -366,6 +372,21 @@ fn check_camera_zooms(cfg: &InferenceConfig) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Refuses top-view settings that could never work, naming the setting.
+fn check_top_views(cfg: &InferenceConfig) -> anyhow::Result<()> {
+    let top = &cfg.top_views;
+    if let Some(i) = top.files.iter().position(String::is_empty) {
+        bail!("inference.top_views.files[{i}]: an empty pattern matches no file name; use e.g. \"*_TV_*\"");
+    }
+    if let Some(t) = top
+        .center_threshold
+        .filter(|t| !(t.is_finite() && *t > 0.0 && *t < 1.0))
+    {
+        bail!("inference.top_views.center_threshold = {t}: a centre threshold lies between 0 and 1");
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -387,6 +408,27 @@ mod tests {
     fn unknown_keys_are_refused() {
         let err = Config::parse("drop_dir = \"/d\"\ndatabase = \"/db\"\n[watch]\nrescan = 3\n").unwrap_err();
         assert!(format!("{err:#}").contains("unknown field"), "{err:#}");
+    }
+
+    /// Top views are told by name and counted by their own model.
+    #[test]
+    fn top_view_settings_are_read_and_bad_ones_named() {
+        use phyllo_inference::top_view::TopModel;
+        let base = "drop_dir = \"/d\"\ndatabase = \"/db\"\n[inference.top_views]\n";
+        let cfg = Config::parse(&format!("{base}model = \"none\"\nfiles = [\"*_TOP_*\"]\n")).unwrap();
+        assert_eq!(cfg.inference.top_views.model, TopModel::Off);
+        assert_eq!(cfg.inference.top_views.files, ["*_TOP_*"]);
+        let counter = crate::pipeline::counting::counter_config(&cfg.inference);
+        assert_eq!(counter.top_views, cfg.inference.top_views);
+        let default = Config::parse("drop_dir = \"/d\"\ndatabase = \"/db\"\n").unwrap();
+        assert_eq!(default.inference.top_views.model, TopModel::Default);
+        for (bad, names) in [
+            ("files = [\"\"]", "files[0]"),
+            ("center_threshold = 1.5", "center_threshold"),
+        ] {
+            let err = format!("{:#}", Config::parse(&format!("{base}{bad}\n")).unwrap_err());
+            assert!(err.contains(names), "{bad}: {err}");
+        }
     }
 
     /// Issue 41: a station pins its camera's zoom, outright or by file name.

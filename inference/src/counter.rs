@@ -23,6 +23,7 @@ use crate::station::{camera_zoom_for, CameraZoomRule};
 use crate::stitch::{stitch, TileOutputs};
 use crate::tiling::{batch_tensor, prepare, Canvas};
 use crate::tips::CountRule;
+use crate::top_view::TopViewConfig;
 use crate::zoom::{instances_height, Zoom};
 
 /// Slack around the plant's box, in model pixels, within which instance
@@ -70,6 +71,8 @@ pub struct CounterConfig {
     pub flip: bool,
     /// Post-processing parameters.
     pub postprocess: PostprocessParams,
+    /// How top views are told and which model counts them.
+    pub top_views: TopViewConfig,
     /// Decoder limits.
     pub limits: DecodeLimits,
 }
@@ -90,6 +93,7 @@ impl Default for CounterConfig {
             max_zoom: None,
             flip: false,
             postprocess: PostprocessParams::default(),
+            top_views: TopViewConfig::default(),
             limits: DecodeLimits::default(),
         }
     }
@@ -134,8 +138,17 @@ pub struct Analysis {
 /// serialised inside (each already uses every core it is given).
 pub struct Counter {
     model: Model,
+    /// The top-view model and the post-processing it counts with.
+    top: Option<(Model, PostprocessParams)>,
     config: CounterConfig,
     contract: &'static Contract,
+}
+
+/// The model that counts one image and its post-processing.
+#[derive(Clone, Copy)]
+struct Net<'a> {
+    model: &'a Model,
+    postprocess: &'a PostprocessParams,
 }
 
 impl Counter {
@@ -143,29 +156,75 @@ impl Counter {
     pub fn new(config: CounterConfig) -> Result<Self, InferenceError> {
         let env = runtime::environment(config.ort_lib.as_deref())?;
         let model_path = config.model.clone().unwrap_or_else(default_model_path);
-        let model = Model::load(
-            env,
-            &model_path,
-            ModelOptions {
-                intra_threads: config.intra_threads,
-                spinning: config.ort_spinning,
-            },
-        )?;
+        let options = ModelOptions {
+            intra_threads: config.intra_threads,
+            spinning: config.ort_spinning,
+        };
+        let model = Model::load(env, &model_path, options)?;
+        let side_model_chosen =
+            config.model.is_some() || std::env::var_os(MODEL_ENV).is_some_and(|v| !v.is_empty());
+        let top = match config.top_views.model_path(side_model_chosen) {
+            Some(path) => {
+                let postprocess = PostprocessParams {
+                    center_threshold: config.top_views.center_threshold(),
+                    ..config.postprocess.clone()
+                };
+                Some((Model::load(env, &path, options)?, postprocess))
+            }
+            None => None,
+        };
         Ok(Self {
             model,
+            top,
             config,
             contract: Contract::embedded(),
         })
     }
 
-    /// What the model says about itself.
+    /// What the (side-view) model says about itself.
     pub fn model_info(&self) -> &ModelInfo {
         self.model.info()
     }
 
-    /// `name@sha256-prefix` of the model, stored with every observation.
+    /// What the top-view model says about itself, when there is one.
+    pub fn top_model_info(&self) -> Option<&ModelInfo> {
+        self.top.as_ref().map(|(m, _)| m.info())
+    }
+
+    /// `name@sha256-prefix` of the model; with a top-view model, both, as
+    /// `side@sha+top@sha`.
     pub fn model_id(&self) -> String {
-        self.model.info().id()
+        match self.top_model_info() {
+            Some(top) => format!("{}+{}", self.model.info().id(), top.id()),
+            None => self.model.info().id(),
+        }
+    }
+
+    /// `name@sha256-prefix` of the model that counts the file at `path`,
+    /// stored with its observation.
+    pub fn model_id_for(&self, path: &Path) -> String {
+        self.net_for(path).model.info().id()
+    }
+
+    /// Whether the file at `path` is counted by the top-view model.
+    pub fn counts_as_top_view(&self, path: &Path) -> bool {
+        self.top.is_some() && self.config.top_views.is_top_view(path)
+    }
+
+    fn net_for(&self, path: &Path) -> Net<'_> {
+        match &self.top {
+            Some((model, postprocess)) if self.config.top_views.is_top_view(path) => {
+                Net { model, postprocess }
+            }
+            _ => self.side_net(),
+        }
+    }
+
+    fn side_net(&self) -> Net<'_> {
+        Net {
+            model: &self.model,
+            postprocess: &self.config.postprocess,
+        }
     }
 
     /// The rule its counts follow: the configured one with a model that has
@@ -201,7 +260,7 @@ impl Counter {
         let img = decode_rgb(name, bytes, &self.config.limits)?;
         let decode_ms = ms(t0);
         let zoom = camera_zoom_for(name, &self.config.camera_zoom_rules, self.config.camera_zoom);
-        let mut analysis = self.analyse_image_at(&img, zoom)?;
+        let mut analysis = self.analyse_with(self.net_for(name), &img, zoom)?;
         analysis.result.ms.decode = decode_ms;
         analysis.result.ms.total += decode_ms;
         Ok(analysis)
@@ -213,9 +272,19 @@ impl Counter {
         self.analyse_image_at(img, self.config.camera_zoom)
     }
 
-    /// Analyses an already decoded image taken with camera zoom `camera_zoom`.
+    /// Analyses an already decoded side view taken with camera zoom
+    /// `camera_zoom`.
     pub fn analyse_image_at(
         &self,
+        img: &RgbImage,
+        camera_zoom: CameraZoom,
+    ) -> Result<Analysis, InferenceError> {
+        self.analyse_with(self.side_net(), img, camera_zoom)
+    }
+
+    fn analyse_with(
+        &self,
+        net: Net<'_>,
         img: &RgbImage,
         camera_zoom: CameraZoom,
     ) -> Result<Analysis, InferenceError> {
@@ -231,14 +300,14 @@ impl Counter {
         let t0 = Instant::now();
         let camera = camera_scale::choose(c, img, self.config.scale, camera_zoom);
         timings.tile += ms(t0);
-        let (mut canvas, mut pan) = self.pass(img, Some(camera.scale), &mut timings)?;
+        let (mut canvas, mut pan) = self.pass(net, img, Some(camera.scale), &mut timings)?;
         let mut tiles = canvas.tiles.len() as u32;
         // A fixed region bounds the chamber, not the plant; only an
         // automatic one may be zoomed into.
         if self.config.region == RegionMode::Auto {
             let z = instances_height(&pan, c.outputs.stride).map_or(1.0, |h| zoom.factor(h));
             if z > 1.0 {
-                (canvas, pan) = self.pass(img, Some(canvas.scale * z), &mut timings)?;
+                (canvas, pan) = self.pass(net, img, Some(canvas.scale * z), &mut timings)?;
                 tiles += canvas.tiles.len() as u32;
             }
         }
@@ -246,7 +315,7 @@ impl Counter {
         // Only once the scale is settled: specks would otherwise change the
         // plant's measured height and with it the enlargement.
         self.tidy(&mut pan, &canvas);
-        let mut result = to_result(c, &pan, &canvas, img.dimensions(), &self.config.postprocess);
+        let mut result = to_result(c, &pan, &canvas, img.dimensions(), net.postprocess);
         result.tiles = tiles;
         result.camera = Some(camera);
         timings.postprocess += ms(t);
@@ -273,6 +342,7 @@ impl Counter {
     /// (or the contract's), adding its stage times to `timings`.
     fn pass(
         &self,
+        net: Net<'_>,
         img: &RgbImage,
         scale: Option<f32>,
         timings: &mut StageTimings,
@@ -286,9 +356,9 @@ impl Counter {
         let mut outputs: Option<TileOutputs> = None;
         for chunk in canvas.tiles.chunks(self.config.batch_size.max(1)) {
             let batch = batch_tensor(c, &canvas.image, chunk);
-            let mut out = self.model.run(batch.view())?;
+            let mut out = net.model.run(batch.view())?;
             if self.config.flip {
-                let mirror = self.model.run(flip::mirrored(&batch).view())?;
+                let mirror = net.model.run(flip::mirrored(&batch).view())?;
                 flip::average_with_mirror(&mut out, &mirror);
             }
             match outputs.as_mut() {
@@ -302,20 +372,10 @@ impl Counter {
         let t2 = Instant::now();
         let (cw, ch) = canvas.image.dimensions();
         let raw = stitch(&outputs, &canvas.tiles, cw, ch, c.outputs.stride);
-        let mut pan = panoptic(&raw, c, &self.config.postprocess);
-        keep_attached(
-            &mut pan,
-            &canvas.image,
-            c,
-            self.config.postprocess.attach_radius,
-            self.config.postprocess.min_leaf_area,
-        );
-        split_pieces(
-            &mut pan,
-            self.config.postprocess.split_min_area,
-            self.config.postprocess.split_gap,
-            self.config.postprocess.split_max_leaf_share,
-        );
+        let p = net.postprocess;
+        let mut pan = panoptic(&raw, c, p);
+        keep_attached(&mut pan, &canvas.image, c, p.attach_radius, p.min_leaf_area);
+        split_pieces(&mut pan, p.split_min_area, p.split_gap, p.split_max_leaf_share);
         if let Some(plant) = canvas.plant {
             keep_centred_in_plant(&mut pan, plant, c.outputs.stride);
         }

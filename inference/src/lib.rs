@@ -38,6 +38,7 @@ pub mod station;
 pub mod stitch;
 pub mod tiling;
 pub mod tips;
+pub mod top_view;
 pub mod zoom;
 
 pub use counter::{Counter, CounterConfig};

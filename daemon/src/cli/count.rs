@@ -44,7 +44,6 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create overlay directory {}", dir.display()))?;
     }
-    let model_id = counter.model_id();
     let has_tips = info.has_tips;
     let mut failed = 0usize;
     let stdout = std::io::stdout();
@@ -56,7 +55,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 if args.json {
                     let mut v = serde_json::to_value(&r)?;
                     v["file"] = json!(path);
-                    v["model"] = json!(model_id);
+                    v["model"] = json!(counter.model_id_for(path));
                     writeln!(out, "{v}")?;
                 } else {
                     // With a tip model, the tips found beside the leaves

@@ -7,6 +7,7 @@ use phyllo_inference::camera_scale::CameraZoom;
 use phyllo_inference::postprocess::{PostprocessParams, DEFAULT_ATTACH_RADIUS};
 use phyllo_inference::region::RegionMode;
 use phyllo_inference::tips::{CountRule, DEFAULT_TIP_REACH};
+use phyllo_inference::top_view::{TopModel, TopViewConfig};
 use phyllo_inference::CounterConfig;
 
 /// Model and runtime options.
@@ -15,6 +16,16 @@ pub struct CounterArgs {
     /// ONNX model (default: $PHYLLO_MODEL, then the model shipped with phyllo).
     #[arg(long, value_name = "PATH")]
     pub model: Option<PathBuf>,
+    /// Model for top views (file names `*_TV_*`, `*_top.*`): `default` (the
+    /// shipped one, $PHYLLO_TOP_MODEL, unless --model or $PHYLLO_MODEL names
+    /// the side-view model), `none` (the side-view model counts them), or a
+    /// file.
+    #[arg(long, value_name = "MODEL", default_value = "default")]
+    pub top_model: TopModel,
+    /// Post-processing of top views: minimum centre heatmap value (default:
+    /// the shipped top-view model's).
+    #[arg(long, value_name = "VALUE")]
+    pub top_center_threshold: Option<f32>,
     /// ONNX Runtime shared library (default: $PHYLLO_ORT_LIB, then a search).
     #[arg(long, value_name = "PATH")]
     pub ort_lib: Option<PathBuf>,
@@ -132,6 +143,11 @@ impl CounterArgs {
             max_zoom: self.max_zoom,
             flip: self.flip,
             postprocess,
+            top_views: TopViewConfig {
+                model: self.top_model.clone(),
+                center_threshold: self.top_center_threshold,
+                ..TopViewConfig::default()
+            },
             ..CounterConfig::default()
         })
     }

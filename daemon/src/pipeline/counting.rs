@@ -41,6 +41,7 @@ pub fn counter_config(cfg: &crate::config::InferenceConfig) -> phyllo_inference:
         flip: cfg.flip,
         camera_zoom: cfg.camera_zoom,
         camera_zoom_rules: cfg.camera_zoom_rules.clone(),
+        top_views: cfg.top_views.clone(),
         ..phyllo_inference::CounterConfig::default()
     }
 }
@@ -67,7 +68,7 @@ impl LeafCounter for phyllo_inference::Counter {
                     "camera": r.camera,
                 }),
                 ms_total: r.ms.total,
-                model_id: self.model_id(),
+                model_id: self.model_id_for(name),
                 settings: LeafCounter::settings(self),
             }),
             Err(e) => {
@@ -105,6 +106,7 @@ fn counting_settings(config: &phyllo_inference::CounterConfig) -> serde_json::Va
         "camera_zoom": config.camera_zoom,
         "camera_zoom_rules": config.camera_zoom_rules,
         "postprocess": config.postprocess,
+        "top_views": config.top_views,
     });
     shorten_f32(&mut settings);
     settings

@@ -1,0 +1,190 @@
+//! Top views, counted by a model of their own.
+//!
+//! The side-view model never saw a plant from above and misses about five
+//! leaves of every top view (models/MODEL.md). A model trained on top views
+//! alone counts them; the side views keep the model their numbers were
+//! measured with. Which images are top views is told by their file names, as
+//! the facility names them (LemnaTec's `..._Vis_TV_90.png`) and as
+//! `phyllo-gen` does (`p000012_top.png`).
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::station::glob_match;
+
+/// Environment variable naming the default top-view model file.
+pub const TOP_MODEL_ENV: &str = "PHYLLO_TOP_MODEL";
+
+/// File name of the shipped top-view model, beside the side-view model.
+pub const TOP_MODEL_FILE: &str = "phyllo-top.onnx";
+
+/// File-name patterns of top views: LemnaTec's and phyllo-gen's.
+pub const DEFAULT_TOP_VIEW_FILES: [&str; 2] = ["*_TV_*", "*_top.*"];
+
+/// Centre threshold of the shipped top-view model, chosen on the top views
+/// of the calibration set `calib-top-s700301` (models/MODEL.md).
+pub const DEFAULT_TOP_CENTER_THRESHOLD: f32 = 0.15;
+
+/// Which model counts the top views.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum TopModel {
+    /// The shipped top-view model, when the side-view model is the shipped
+    /// one too; a side-view model named by hand counts every view.
+    #[default]
+    Default,
+    /// None: the side-view model counts the top views too.
+    Off,
+    /// This file.
+    File(PathBuf),
+}
+
+impl std::str::FromStr for TopModel {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "" => Err("a top-view model is `default`, `none` or a file".into()),
+            "default" => Ok(TopModel::Default),
+            "none" => Ok(TopModel::Off),
+            path => Ok(TopModel::File(PathBuf::from(path))),
+        }
+    }
+}
+
+impl TryFrom<String> for TopModel {
+    type Error = String;
+
+    fn try_from(s: String) -> Result<Self, String> {
+        s.parse()
+    }
+}
+
+impl From<TopModel> for String {
+    fn from(m: TopModel) -> String {
+        match m {
+            TopModel::Default => "default".into(),
+            TopModel::Off => "none".into(),
+            TopModel::File(p) => p.display().to_string(),
+        }
+    }
+}
+
+/// How top views are told and counted.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TopViewConfig {
+    /// The model that counts them.
+    pub model: TopModel,
+    /// File-name patterns (`*` and `?` wildcards, on the name without its
+    /// folders) of top views; any match makes one.
+    pub files: Vec<String>,
+    /// The top-view model's centre threshold; `None` takes
+    /// [`DEFAULT_TOP_CENTER_THRESHOLD`].
+    pub center_threshold: Option<f32>,
+}
+
+impl Default for TopViewConfig {
+    fn default() -> Self {
+        Self {
+            model: TopModel::Default,
+            files: DEFAULT_TOP_VIEW_FILES.map(String::from).to_vec(),
+            center_threshold: None,
+        }
+    }
+}
+
+impl TopViewConfig {
+    /// Whether the file at `path` is a top view.
+    pub fn is_top_view(&self, path: &Path) -> bool {
+        let name = path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default();
+        self.files.iter().any(|p| glob_match(p, &name))
+    }
+
+    /// The top-view model file to load, if any. `side_model_chosen` says
+    /// that the side-view model was named (in the configuration or by
+    /// `$PHYLLO_MODEL`): a model under study then counts every view, unless
+    /// a top-view model is named too.
+    pub fn model_path(&self, side_model_chosen: bool) -> Option<PathBuf> {
+        match &self.model {
+            TopModel::Off => None,
+            TopModel::File(p) => Some(p.clone()),
+            TopModel::Default if side_model_chosen => None,
+            TopModel::Default => default_top_model_path(),
+        }
+    }
+
+    /// The centre threshold the top-view model counts with.
+    pub fn center_threshold(&self) -> f32 {
+        self.center_threshold.unwrap_or(DEFAULT_TOP_CENTER_THRESHOLD)
+    }
+}
+
+/// The default top-view model: `$PHYLLO_TOP_MODEL`, then
+/// `../share/phyllo/phyllo-top.onnx` beside the executable, then
+/// `models/phyllo-top.onnx` in this source tree; `None` when none exists
+/// (the side-view model then counts top views too).
+pub fn default_top_model_path() -> Option<PathBuf> {
+    if let Some(p) = std::env::var_os(TOP_MODEL_ENV).filter(|v| !v.is_empty()) {
+        return Some(PathBuf::from(p));
+    }
+    let mut candidates = Vec::new();
+    if let Some(exe_dir) = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(Path::to_path_buf))
+    {
+        candidates.push(exe_dir.join("../share/phyllo").join(TOP_MODEL_FILE));
+    }
+    candidates.push(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../models")
+            .join(TOP_MODEL_FILE),
+    );
+    candidates.into_iter().find(|p| p.is_file())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn facility_and_generator_top_views_are_told_by_name() {
+        let c = TopViewConfig::default();
+        assert!(c.is_top_view(Path::new("/drop/P1_2018-04-20_10-02-00_Vis_TV_90.png")));
+        assert!(c.is_top_view(Path::new("data/images/p000012_top.png")));
+        assert!(!c.is_top_view(Path::new("/drop/P1_2018-04-20_10-02-00_Vis_SV_90.png")));
+        assert!(!c.is_top_view(Path::new("data/images/p000012_108.png")));
+        // Only the file name counts, not the folders it lies in.
+        assert!(!c.is_top_view(Path::new("/x_TV_1/p000012_36.png")));
+    }
+
+    #[test]
+    fn a_side_model_named_by_hand_counts_every_view() {
+        let c = TopViewConfig::default();
+        assert_eq!(c.model_path(true), None);
+        let named = TopViewConfig {
+            model: TopModel::File("t.onnx".into()),
+            ..TopViewConfig::default()
+        };
+        assert_eq!(named.model_path(true), Some(PathBuf::from("t.onnx")));
+        let off = TopViewConfig {
+            model: TopModel::Off,
+            ..TopViewConfig::default()
+        };
+        assert_eq!(off.model_path(false), None);
+    }
+
+    #[test]
+    fn top_model_choices_read_and_write_as_text() {
+        for (text, m) in [
+            ("default", TopModel::Default),
+            ("none", TopModel::Off),
+            ("models/t.onnx", TopModel::File("models/t.onnx".into())),
+        ] {
+            assert_eq!(text.parse::<TopModel>().unwrap(), m);
+            assert_eq!(String::from(m), text);
+        }
+        assert!("".parse::<TopModel>().is_err());
+    }
+}
