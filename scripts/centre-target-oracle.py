@@ -11,6 +11,9 @@ the contract's sigma 4, sigma 2.5, and crowded centres narrowed
 blurred copy of each target can count (models/EXPERIMENTS.md, "Stage 8").
 
     models/.venv/bin/python scripts/centre-target-oracle.py /work/data/calib-e40-mini 120
+    models/.venv/bin/python scripts/centre-target-oracle.py /work/data/calib-top-s700301 150 7,5,3
+
+The optional third argument lists NMS windows (default: the contract's 7).
 """
 
 import sys
@@ -48,20 +51,21 @@ def main() -> int:
     rules = [("sigma 4 (the contract's)", lambda cs: np.full(len(cs), 4.0)),
              ("sigma 2.5", lambda cs: np.full(len(cs), 2.5)),
              ("crowded centres narrowed, min 2", lambda cs: crowding_sigmas(cs, 4.0, 2.0))]
-    print("| centre target | images | counts kept | bias |")
-    print("|---|---:|---:|---:|")
+    windows = [int(k) for k in sys.argv[3].split(",")] if len(sys.argv) > 3 else [c.nms_kernel]
+    print("| centre target | NMS window | images | counts kept | bias |")
+    print("|---|---:|---:|---:|---:|")
     for name, rule in rules:
-        kept, diffs = 0, []
+        heats = []
         for lab, cs in zip(labels, centres):
             h, w = lab.shape[0] // c.stride, lab.shape[1] // c.stride
             gy, gx = np.ogrid[0:h, 0:w]
             heat = np.zeros((h, w), np.float32)
             for (cy, cx), sg in zip(cs, rule(cs)):
                 heat += np.exp(-((gy - cy) ** 2 + (gx - cx) ** 2) / (2 * sg * sg)).astype(np.float32)
-            n = len(find_centers(torch.from_numpy(heat)[None], 0.3, 7, 200))
-            kept += n == len(cs)
-            diffs.append(n - len(cs))
-        print(f"| {name} | {len(labels)} | {100 * kept / len(labels):.1f} % | {np.mean(diffs):+.3f} |")
+            heats.append(torch.from_numpy(heat)[None])
+        for k in windows:
+            diffs = np.array([len(find_centers(heat, 0.3, k, 200)) - len(cs) for heat, cs in zip(heats, centres)])
+            print(f"| {name} | {k} | {len(labels)} | {100 * np.mean(diffs == 0):.1f} % | {np.mean(diffs):+.3f} |")
     return 0
 
 

@@ -87,10 +87,9 @@ pub struct WatchConfig {
     /// the imaging station, its network share or the drop directory may have
     /// stopped. 0 turns the warning off (a site that images on some days only).
     pub quiet_hours: f64,
-    /// Leave top-view images alone (not read, not counted). The model was
-    /// trained on side views and under-counts a top view by about five
-    /// leaves, and only the `max` fusion rule uses them, so a station that
-    /// takes one top view per five side views saves a sixth of the counting.
+    /// Leave top-view images alone (not read, not counted). Only the `max`
+    /// fusion rule uses them, so a station that takes one top view per five
+    /// side views saves a sixth of the counting.
     pub skip_top_views: bool,
 }
 
@@ -384,6 +383,9 @@ fn check_top_views(cfg: &InferenceConfig) -> anyhow::Result<()> {
     {
         bail!("inference.top_views.center_threshold = {t}: a centre threshold lies between 0 and 1");
     }
+    if let Some(k) = top.nms_kernel.filter(|k| k.is_multiple_of(2) || *k > 31) {
+        bail!("inference.top_views.nms_kernel = {k}: the window is odd, 1 to 31 output pixels");
+    }
     Ok(())
 }
 
@@ -425,6 +427,7 @@ mod tests {
         for (bad, names) in [
             ("files = [\"\"]", "files[0]"),
             ("center_threshold = 1.5", "center_threshold"),
+            ("nms_kernel = 4", "nms_kernel"),
         ] {
             let err = format!("{:#}", Config::parse(&format!("{base}{bad}\n")).unwrap_err());
             assert!(err.contains(names), "{bad}: {err}");
@@ -533,6 +536,9 @@ mod tests {
             "camera_zoom",
             "[[inference.camera_zoom_rules]]",
             "files",
+            "[inference.top_views]",
+            "center_threshold",
+            "nms_kernel",
             "[timeline]",
             "fusion",
             "session_gap_minutes",

@@ -167,6 +167,7 @@ impl Counter {
             Some(path) => {
                 let postprocess = PostprocessParams {
                     center_threshold: config.top_views.center_threshold(),
+                    nms_kernel: config.top_views.nms_kernel(),
                     ..config.postprocess.clone()
                 };
                 Some((Model::load(env, &path, options)?, postprocess))

@@ -19,6 +19,10 @@ pub const TOP_MODEL_ENV: &str = "PHYLLO_TOP_MODEL";
 /// File name of the shipped top-view model, beside the side-view model.
 pub const TOP_MODEL_FILE: &str = "phyllo-top.onnx";
 
+/// NMS window of the shipped top-view model, in output pixels, chosen with
+/// its centre threshold.
+pub const DEFAULT_TOP_NMS_KERNEL: u32 = 7;
+
 /// File-name patterns of top views: LemnaTec's and phyllo-gen's.
 pub const DEFAULT_TOP_VIEW_FILES: [&str; 2] = ["*_TV_*", "*_top.*"];
 
@@ -83,6 +87,10 @@ pub struct TopViewConfig {
     /// The top-view model's centre threshold; `None` takes
     /// [`DEFAULT_TOP_CENTER_THRESHOLD`].
     pub center_threshold: Option<f32>,
+    /// The top-view model's NMS window (odd, output pixels); `None` takes
+    /// [`DEFAULT_TOP_NMS_KERNEL`]. Leaves crowd at the whorl more from above
+    /// than from the side.
+    pub nms_kernel: Option<u32>,
 }
 
 impl Default for TopViewConfig {
@@ -91,6 +99,7 @@ impl Default for TopViewConfig {
             model: TopModel::Default,
             files: DEFAULT_TOP_VIEW_FILES.map(String::from).to_vec(),
             center_threshold: None,
+            nms_kernel: None,
         }
     }
 }
@@ -118,6 +127,11 @@ impl TopViewConfig {
     /// The centre threshold the top-view model counts with.
     pub fn center_threshold(&self) -> f32 {
         self.center_threshold.unwrap_or(DEFAULT_TOP_CENTER_THRESHOLD)
+    }
+
+    /// The NMS window the top-view model counts with.
+    pub fn nms_kernel(&self) -> u32 {
+        self.nms_kernel.unwrap_or(DEFAULT_TOP_NMS_KERNEL)
     }
 }
 

@@ -49,6 +49,7 @@ fn top_views_are_counted_by_the_top_model_and_side_views_as_before() {
         model: Some(model("phyllo-untrained.onnx")),
         postprocess: PostprocessParams {
             center_threshold: TopViewConfig::default().center_threshold(),
+            nms_kernel: TopViewConfig::default().nms_kernel(),
             ..PostprocessParams::default()
         },
         top_views: TopViewConfig {

@@ -26,6 +26,11 @@ pub struct CounterArgs {
     /// the shipped top-view model's).
     #[arg(long, value_name = "VALUE")]
     pub top_center_threshold: Option<f32>,
+    /// Post-processing of top views: side of the max-pool window that keeps
+    /// one centre per neighbourhood, in output pixels, odd (default: the
+    /// shipped top-view model's).
+    #[arg(long, value_name = "PIXELS", value_parser = parse_nms_kernel)]
+    pub top_nms_kernel: Option<u32>,
     /// ONNX Runtime shared library (default: $PHYLLO_ORT_LIB, then a search).
     #[arg(long, value_name = "PATH")]
     pub ort_lib: Option<PathBuf>,
@@ -146,6 +151,7 @@ impl CounterArgs {
             top_views: TopViewConfig {
                 model: self.top_model.clone(),
                 center_threshold: self.top_center_threshold,
+                nms_kernel: self.top_nms_kernel,
                 ..TopViewConfig::default()
             },
             ..CounterConfig::default()
