@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs phyllo: the binary, the model, the ONNX Runtime library, the docs
 # and the example config under PREFIX, where the binary's own search paths
-# look (PREFIX/share/phyllo/phyllo.onnx, PREFIX/lib/phyllo/libonnxruntime.so),
+# look (PREFIX/share/phyllo/phyllo.onnx and phyllo-top.onnx, PREFIX/lib/phyllo/libonnxruntime.so),
 # so the installed `phyllo` counts from any directory with any HOME; then,
 # unless --no-systemd, the units (pointed at PREFIX/bin/phyllo), the system
 # user and /etc/phyllo/phyllo.toml (kept if it exists). docs/daemon.md,
@@ -51,6 +51,10 @@ fi
 
 install -D -m 0755 "$bin" "$prefix/bin/phyllo"
 install -D -m 0644 "$root/models/phyllo.onnx" "$prefix/share/phyllo/phyllo.onnx"
+# The top-view model, found beside the side-view model ([inference.top_views]).
+if [ -e "$root/models/phyllo-top.onnx" ]; then
+  install -D -m 0644 "$root/models/phyllo-top.onnx" "$prefix/share/phyllo/phyllo-top.onnx"
+fi
 install -D -m 0644 "$ort" "$prefix/lib/phyllo/libonnxruntime.so.$ver"
 ln -sf "libonnxruntime.so.$ver" "$prefix/lib/phyllo/libonnxruntime.so"
 install -D -m 0644 "$root/systemd/phyllo.toml.example" "$prefix/share/phyllo/phyllo.toml.example"

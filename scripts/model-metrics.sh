@@ -7,7 +7,11 @@
 # Usage: scripts/model-metrics.sh [MODEL] [TEST_DATASET]
 #   MODEL         default models/phyllo.onnx
 #   TEST_DATASET  default /work/data/test-s900002 (scripts/make-eval-sets.sh
-#                 renders it and the calibration sets)
+#                 renders it and the calibration sets); a set with top views
+#                 (test-e40-s900301, the paper's protocol) also gets a side-view
+#                 and a top-view row
+# TOP_MODEL: the model that counts top views, default models/phyllo-top.onnx
+#   (the shipped pair); `none` counts them with MODEL too.
 # Real data: $PHYLLO_DEV_DATA, default ../shared/data/unl-maize-dev.
 # CALIB_ROOT: default /work/data; CALIB_SETS="" leaves the calibration rows out.
 set -euo pipefail
@@ -16,6 +20,8 @@ model=${1:-$root/models/phyllo.onnx}
 test=${2:-/work/data/test-s900002}
 dev=${PHYLLO_DEV_DATA:-$root/../shared/data/unl-maize-dev}
 bin=$root/target/release/phyllo
+top=${TOP_MODEL:-$root/models/phyllo-top.onnx}
+[ "$top" = none ] || [ -e "$top" ] || { echo "model-metrics: no top-view model $top (TOP_MODEL=none counts top views with $model)" >&2; exit 2; }
 cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
 sets=$root/models/eval-sets.tsv
 eval_json=$root/scripts/eval_json.py
@@ -25,15 +31,25 @@ row() { # label, key in models/eval-sets.tsv, then phyllo eval arguments
   local label=$1 key=$2
   shift 2
   local out got want check
-  out=$("$bin" eval --threads "${THREADS:-2}" --model "$model" --json "$@" 2>/dev/null)
+  out=$("$bin" eval --threads "${THREADS:-2}" --model "$model" --top-model "$top" --json "$@" 2>/dev/null)
   got=$("$eval_json" field fingerprint <<<"$out")
   want=$(awk -F'\t' -v k="$key" '$1 == k {print $2; exit}' "$sets")
   if [ "$got" = "$want" ]; then check="$got (as recorded)"; else check="$got (DIFFERS from ${want:-nothing recorded}: not comparable with models/MODEL.md)"; fi
   model_id=$("$eval_json" field model <<<"$out")
   rows+=("$("$eval_json" row "$label" "$check" <<<"$out")")
   intervals+=("$("$eval_json" intervals "$label" <<<"$out")")
+  if [ "$key" = "$(basename "$test")/$test_split" ] && grep -q '"view":"top"' "$test/manifest.jsonl"; then
+    for part in side top; do
+      both=$("$eval_json" subset "  $part views" "$part" <<<"$out")
+      rows+=("$(head -1 <<<"$both") |")
+      intervals+=("$(tail -1 <<<"$both")")
+    done
+  fi
 }
-row "synthetic frames, $(basename "$test")" "$(basename "$test")/val" --dataset "$test" --split val
+# The split models/eval-sets.tsv records for the set (`all` for sets rendered whole).
+test_split=val
+if grep -q "^$(basename "$test")/all"$'\t' "$sets"; then test_split=all; fi
+row "synthetic frames, $(basename "$test")" "$(basename "$test")/$test_split" --dataset "$test" --split $test_split --per-image
 row "real full frames" real-frames --counts "$dev/leaf_tips.csv" --images "$dev/images"
 row "real crops" real-crops --counts "$dev/crops_counts.csv" --images "$dev/crops"
 for set in ${CALIB_SETS-calib-s700001 calib-s700003-late whorl-s700005}; do
