@@ -21,7 +21,7 @@ pub const TOP_MODEL_FILE: &str = "phyllo-top.onnx";
 
 /// NMS window of the shipped top-view model, in output pixels, chosen with
 /// its centre threshold.
-pub const DEFAULT_TOP_NMS_KERNEL: u32 = 7;
+pub const DEFAULT_TOP_NMS_KERNEL: u32 = 3;
 
 /// File-name patterns of top views: LemnaTec's and phyllo-gen's.
 pub const DEFAULT_TOP_VIEW_FILES: [&str; 2] = ["*_TV_*", "*_top.*"];

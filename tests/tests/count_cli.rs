@@ -427,3 +427,42 @@ fn a_closed_pipe_ends_the_command_quietly() {
     );
     assert_ne!(out.status.code(), Some(101), "a panic's exit code: {stderr}");
 }
+
+/// The shipped pair, as a user runs it (no `--model`): a top view, told by
+/// its name, is counted by `models/phyllo-top.onnx`, a side view by the side
+/// model, and each JSON line names the model that counted it;
+/// `--top-model none` hands the top view back to the side model.
+#[test]
+fn top_views_are_counted_by_the_shipped_top_model() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (rendered, _) = render_frame(tmp.path(), &["--view", "top", "--age", "40"]);
+    let top = tmp.path().join("p000003_top.png");
+    let side = tmp.path().join("p000003_108.png");
+    std::fs::copy(&rendered, &top).unwrap();
+    std::fs::copy(&rendered, &side).unwrap();
+    let count = |extra: &[&str]| {
+        let (out, stdout, stderr) = run(phyllo()
+            .env_remove("PHYLLO_MODEL")
+            .env_remove("PHYLLO_TOP_MODEL")
+            .args(["count", "--json", "--threads", "1"])
+            .args(extra)
+            .arg(&top)
+            .arg(&side));
+        assert!(out.status.success(), "{stderr}");
+        json_lines(&stdout)
+    };
+    let pair = count(&[]);
+    let model = |v: &Value| v["model"].as_str().unwrap().to_string();
+    assert!(model(&pair[0]).starts_with("phyllo-top-t1-cpu@"), "{}", pair[0]);
+    assert!(model(&pair[1]).starts_with("phyllo-s10-cpu@"), "{}", pair[1]);
+    let side_only = count(&["--top-model", "none"]);
+    assert_eq!(model(&side_only[0]), model(&pair[1]));
+    assert_eq!(side_only[1]["leaf_count"], pair[1]["leaf_count"]);
+    // The same pixels: the side model finds fewer of a top view's leaves.
+    assert!(
+        pair[0]["leaf_count"].as_u64() > side_only[0]["leaf_count"].as_u64(),
+        "top model {} against side model {}",
+        pair[0]["leaf_count"],
+        side_only[0]["leaf_count"]
+    );
+}
