@@ -168,7 +168,7 @@ impl Counter {
                 let postprocess = PostprocessParams {
                     center_threshold: config.top_views.center_threshold(),
                     nms_kernel: config.top_views.nms_kernel(),
-                    ..config.postprocess.clone()
+                    ..config.postprocess
                 };
                 Some((Model::load(env, &path, options)?, postprocess))
             }
