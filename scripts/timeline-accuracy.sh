@@ -10,7 +10,8 @@
 # Usage: scripts/timeline-accuracy.sh [SEQUENCE_DIR]
 # Environment: PLANTS [36], DAYS [30], START_AGE [14], SEED [800001] (the
 #   sequence, rendered only when SEQUENCE_DIR has no truth.csv; a partial
-#   render resumes), MODEL [models/phyllo.onnx], THREADS [2],
+#   render resumes), MODEL [models/phyllo.onnx], TOP_MODEL [none: MODEL counts top views;
+#   models/phyllo-top.onnx as the shipped pair] (scripts/count-sequence.sh), THREADS [2],
 #   RULES ["second-max-side median-side max-side mean-side max view:SV_108"], the first the daemon's default;
 #   a rule may carry [timeline] settings after commas: "second-max-side,death_penalty=0";
 #   KEEP [unset]: keep each rule's store in KEEP/<n>/ (0: the first rule), to plot any plant after;
