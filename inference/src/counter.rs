@@ -103,24 +103,36 @@ impl Default for CounterConfig {
 /// beside the executable (a packaged install), then the model shipped in this
 /// source tree (`models/phyllo.onnx`, else `models/phyllo-untrained.onnx`).
 pub fn default_model_path() -> PathBuf {
-    if let Some(p) = std::env::var_os(MODEL_ENV).filter(|v| !v.is_empty()) {
-        return PathBuf::from(p);
+    if let Some(p) = path_from_env(MODEL_ENV) {
+        return p;
     }
-    let mut candidates = Vec::new();
-    if let Some(exe_dir) = std::env::current_exe()
-        .ok()
-        .and_then(|e| e.parent().map(Path::to_path_buf))
-    {
-        candidates.push(exe_dir.join("../share/phyllo/phyllo.onnx"));
-    }
-    let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models");
-    candidates.push(models.join("phyllo.onnx"));
-    candidates.push(models.join("phyllo-untrained.onnx"));
+    let mut candidates = shipped_model_candidates("phyllo.onnx");
+    candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/phyllo-untrained.onnx"));
     candidates
         .iter()
         .find(|p| p.is_file())
         .cloned()
         .unwrap_or_else(|| candidates[0].clone())
+}
+
+/// The path an environment variable names, unless it is unset or empty.
+pub(crate) fn path_from_env(var: &str) -> Option<PathBuf> {
+    std::env::var_os(var).filter(|v| !v.is_empty()).map(PathBuf::from)
+}
+
+/// Where a shipped model file `file` may lie, in the order searched:
+/// `../share/phyllo/` beside the executable (a packaged install), then
+/// `models/` in this source tree.
+pub(crate) fn shipped_model_candidates(file: &str) -> Vec<PathBuf> {
+    let mut candidates = Vec::new();
+    if let Some(exe_dir) = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(Path::to_path_buf))
+    {
+        candidates.push(exe_dir.join("../share/phyllo").join(file));
+    }
+    candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../models").join(file));
+    candidates
 }
 
 /// Everything counting one image produced, for overlays and evaluation.
@@ -161,8 +173,7 @@ impl Counter {
             spinning: config.ort_spinning,
         };
         let model = Model::load(env, &model_path, options)?;
-        let side_model_chosen =
-            config.model.is_some() || std::env::var_os(MODEL_ENV).is_some_and(|v| !v.is_empty());
+        let side_model_chosen = config.model.is_some() || path_from_env(MODEL_ENV).is_some();
         let top = match config.top_views.model_path(side_model_chosen) {
             Some(path) => {
                 let postprocess = PostprocessParams {
@@ -209,16 +220,19 @@ impl Counter {
 
     /// Whether the file at `path` is counted by the top-view model.
     pub fn counts_as_top_view(&self, path: &Path) -> bool {
-        self.top.is_some() && self.config.top_views.is_top_view(path)
+        self.top_net_for(path).is_some()
     }
 
     fn net_for(&self, path: &Path) -> Net<'_> {
-        match &self.top {
-            Some((model, postprocess)) if self.config.top_views.is_top_view(path) => {
-                Net { model, postprocess }
-            }
-            _ => self.side_net(),
-        }
+        self.top_net_for(path).unwrap_or_else(|| self.side_net())
+    }
+
+    fn top_net_for(&self, path: &Path) -> Option<Net<'_>> {
+        let (model, postprocess) = self.top.as_ref()?;
+        self.config
+            .top_views
+            .is_top_view(path)
+            .then_some(Net { model, postprocess })
     }
 
     fn side_net(&self) -> Net<'_> {

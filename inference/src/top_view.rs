@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::counter::{path_from_env, shipped_model_candidates};
 use crate::station::glob_match;
 
 /// Environment variable naming the default top-view model file.
@@ -140,22 +141,11 @@ impl TopViewConfig {
 /// `models/phyllo-top.onnx` in this source tree; `None` when none exists
 /// (the side-view model then counts top views too).
 pub fn default_top_model_path() -> Option<PathBuf> {
-    if let Some(p) = std::env::var_os(TOP_MODEL_ENV).filter(|v| !v.is_empty()) {
-        return Some(PathBuf::from(p));
-    }
-    let mut candidates = Vec::new();
-    if let Some(exe_dir) = std::env::current_exe()
-        .ok()
-        .and_then(|e| e.parent().map(Path::to_path_buf))
-    {
-        candidates.push(exe_dir.join("../share/phyllo").join(TOP_MODEL_FILE));
-    }
-    candidates.push(
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../models")
-            .join(TOP_MODEL_FILE),
-    );
-    candidates.into_iter().find(|p| p.is_file())
+    path_from_env(TOP_MODEL_ENV).or_else(|| {
+        shipped_model_candidates(TOP_MODEL_FILE)
+            .into_iter()
+            .find(|p| p.is_file())
+    })
 }
 
 #[cfg(test)]
