@@ -6,7 +6,8 @@ output pixels) gets a Gaussian of the width a rule gives it; the Gaussians
 are *summed*, as a network whose output is smooth blends neighbours, and
 the contract's peak finder (threshold 0.3, NMS window 7) counts the peaks.
 Prints the share of images whose peak count equals their leaf count, per rule:
-the contract's sigma 4, sigma 2.5, and crowded centres narrowed
+the contract's sigma 4, the same on centres moved onto their own blade
+(`train --center-point blade`), sigma 2.5, and crowded centres narrowed
 (`train --center-sigma-min`). Not a model's score: a ceiling on what a
 blurred copy of each target can count (models/EXPERIMENTS.md, "Stage 8").
 
@@ -27,18 +28,23 @@ import torch  # noqa: E402
 from phyllo_train.contract import load_contract  # noqa: E402
 from phyllo_train.dataset import read_label, read_manifest  # noqa: E402
 from phyllo_train.postprocess import find_centers  # noqa: E402
-from phyllo_train.targets import crowding_sigmas  # noqa: E402
+from phyllo_train.targets import blade_points, crowding_sigmas  # noqa: E402
 
 
-def leaf_centres(lab: np.ndarray, leaf: int, div: int, s: int) -> np.ndarray:
-    """(K, 2) centres of mass of the leaf instances of at least one output pixel, output px."""
+def leaf_centres(lab: np.ndarray, leaf: int, div: int, s: int, point: str = "mass") -> np.ndarray:
+    """(K, 2) centres of the leaf instances of at least one output pixel, output px.
+
+    ``point``: ``mass`` (centre of mass) or ``blade`` (`train --center-point blade`)."""
     ys, xs = np.nonzero((lab // div == leaf) & (lab % div > 0))
     if len(ys) == 0:
         return np.zeros((0, 2))
     _, inv = np.unique(lab[ys, xs], return_inverse=True)
     area = np.bincount(inv).astype(float)
-    cy = (np.bincount(inv, weights=ys) / area - (s - 1) / 2) / s
-    cx = (np.bincount(inv, weights=xs) / area - (s - 1) / 2) / s
+    my, mx = np.bincount(inv, weights=ys) / area, np.bincount(inv, weights=xs) / area
+    if point == "blade":
+        my, mx = blade_points(ys, xs, inv, my, mx)
+    cy = (my - (s - 1) / 2) / s
+    cx = (mx - (s - 1) / 2) / s
     return np.stack([cy, cx], 1)[area >= s * s]
 
 
@@ -47,14 +53,19 @@ def main() -> int:
     root = Path(sys.argv[1])
     rows = read_manifest(root, None)[: int(sys.argv[2]) if len(sys.argv) > 2 else None]
     labels = [read_label(root / r["label"]).astype(np.int64) for r in rows]
-    centres = [leaf_centres(lab, c.leaf, c.label_divisor, c.stride) for lab in labels]
-    rules = [("sigma 4 (the contract's)", lambda cs: np.full(len(cs), 4.0)),
-             ("sigma 2.5", lambda cs: np.full(len(cs), 2.5)),
-             ("crowded centres narrowed, min 2", lambda cs: crowding_sigmas(cs, 4.0, 2.0))]
-    windows = [int(k) for k in sys.argv[3].split(",")] if len(sys.argv) > 3 else [c.nms_kernel]
+    mass = [leaf_centres(lab, c.leaf, c.label_divisor, c.stride) for lab in labels]
+    blade = [leaf_centres(lab, c.leaf, c.label_divisor, c.stride, "blade") for lab in labels]
+    moved = np.concatenate([np.hypot(*(b - m).T) for b, m in zip(blade, mass)])
+    print(f"blade centres: {len(moved)} leaves, {100 * np.mean(moved > 0.5):.1f} % moved off their centre of mass, "
+          f"by {np.mean(moved[moved > 0.5]) if (moved > 0.5).any() else 0:.1f} output px on average\n")
+    rules = [("sigma 4 (the contract's)", mass, lambda cs: np.full(len(cs), 4.0)),
+             ("sigma 4, centres on the blade", blade, lambda cs: np.full(len(cs), 4.0)),
+             ("sigma 2.5", mass, lambda cs: np.full(len(cs), 2.5)),
+             ("crowded centres narrowed, min 2", mass, lambda cs: crowding_sigmas(cs, 4.0, 2.0))]
+    windows = [int(k) for k in sys.argv[3].split(",")] if len(sys.argv) > 3 else [int(c.raw["postprocess"]["nms_kernel"])]
     print("| centre target | NMS window | images | counts kept | bias |")
     print("|---|---:|---:|---:|---:|")
-    for name, rule in rules:
+    for name, centres, rule in rules:
         heats = []
         for lab, cs in zip(labels, centres):
             h, w = lab.shape[0] // c.stride, lab.shape[1] // c.stride

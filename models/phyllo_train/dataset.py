@@ -79,7 +79,7 @@ class PanopticDataset(Dataset):
                  contract: Contract | None = None, seed: int = 0, limit: int | None = None,
                  small_center_weight: float = 1.0, with_tips: bool = False, max_tip_gap: float | None = None,
                  defer_photometric: bool = False, center_sigma_min: float | None = None,
-                 saddle_center_weight: float = 1.0):
+                 saddle_center_weight: float = 1.0, center_point: str = "mass"):
         self.root = Path(root)
         self.contract = contract or load_contract()
         self.rows = read_manifest(self.root, split)[: limit]
@@ -91,6 +91,7 @@ class PanopticDataset(Dataset):
         self.small_center_weight = small_center_weight
         self.center_sigma_min = center_sigma_min
         self.saddle_center_weight = saddle_center_weight
+        self.center_point = center_point
         self.with_tips = with_tips
         if with_tips:
             missing = [r["image"] for r in self.rows if "leaf_tips" not in r]
@@ -166,7 +167,8 @@ class PanopticDataset(Dataset):
         if not self.defer_photometric:
             rgb = apply_photometric(rgb, draw, plant)
         t = make_targets(label, self.contract, window=window, small_center_weight=self.small_center_weight,
-                         center_sigma_min=self.center_sigma_min, saddle_center_weight=self.saddle_center_weight)
+                         center_sigma_min=self.center_sigma_min, saddle_center_weight=self.saddle_center_weight,
+                         center_point=self.center_point)
         target = {
             "semantic": torch.from_numpy(t.semantic),
             "semantic_weight": torch.from_numpy(t.semantic_weight),

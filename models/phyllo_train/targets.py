@@ -143,10 +143,35 @@ def saddle_weight(shape: tuple[int, int], centers: np.ndarray, sigma: float, wei
     return out
 
 
+CENTER_POINTS = ("mass", "blade")
+
+
+def blade_points(ys: np.ndarray, xs: np.ndarray, inv: np.ndarray, my: np.ndarray,
+                 mx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per instance, its own pixel nearest to its centre of mass (input pixels, float).
+
+    ``ys``, ``xs`` are the instances' pixels, ``inv`` each pixel's instance index and
+    ``my``, ``mx`` the centres of mass. An arched or hooked blade's centre of mass lies
+    in the air beside it, where the network must draw a peak on background and point
+    every pixel of the blade at it; long curved real blades come out as two or three
+    instances. The nearest pixel of the blade is a centre the blade itself holds; a
+    centre of mass that lies on the blade (within half a pixel of one of its pixels'
+    centres, in both directions) is kept.
+    """
+    d = (ys - my[inv]) ** 2 + (xs - mx[inv]) ** 2
+    order = np.lexsort((d, inv))
+    _, first = np.unique(inv[order], return_index=True)
+    pick = order[first]
+    # A centre of mass within a pixel of the blade stays where it is: only centres in the air move.
+    on_blade = d[pick] <= 0.5
+    return (np.where(on_blade, my, ys[pick]).astype(np.float64),
+            np.where(on_blade, mx, xs[pick]).astype(np.float64))
+
+
 def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, int, int, int] | None = None,
                  small_area: int = 1024, small_weight: float = 3.0,
                  small_center_weight: float = 1.0, center_sigma_min: float | None = None,
-                 saddle_center_weight: float = 1.0) -> Targets:
+                 saddle_center_weight: float = 1.0, center_point: str = "mass") -> Targets:
     """Compute all targets from a (H, W) panoptic label (class*divisor + instance).
 
     ``window`` = (y0, x0, h, w) in input pixels selects the crop the network
@@ -160,7 +185,11 @@ def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, in
     ``center_sigma_min`` narrows crowded centres' Gaussians (:func:`crowding_sigmas`);
     None keeps the contract's sigma for all. ``saddle_center_weight`` weights the
     centre loss on the dips between neighbouring centres (:func:`saddle_weight`; 1: off).
+    ``center_point`` is where a leaf's centre lies: ``mass`` (its centre of mass, the
+    contract's rule) or ``blade`` (:func:`blade_points`).
     """
+    if center_point not in CENTER_POINTS:
+        raise ValueError(f"center_point must be one of {CENTER_POINTS}, got {center_point!r}")
     s, div = contract.stride, contract.label_divisor
     label = np.asarray(label).astype(np.int64)
     y0, x0, ch, cw = window if window is not None else (0, 0, *label.shape)
@@ -185,8 +214,11 @@ def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, in
         uniq, inv = np.unique(label[ys, xs], return_inverse=True)
         area = np.bincount(inv).astype(np.float64)
         # Centre of mass in whole-label input pixels -> output pixel coordinates of the crop.
-        cy = (np.bincount(inv, weights=ys) / area - y0 - (s - 1) / 2.0) / s
-        cx = (np.bincount(inv, weights=xs) / area - x0 - (s - 1) / 2.0) / s
+        my, mx = np.bincount(inv, weights=ys) / area, np.bincount(inv, weights=xs) / area
+        if center_point == "blade":
+            my, mx = blade_points(ys, xs, inv, my, mx)
+        cy = (my - y0 - (s - 1) / 2.0) / s
+        cx = (mx - x0 - (s - 1) / 2.0) / s
         # A sliver smaller than one output pixel gets no centre: it cannot be decoded.
         kept = area >= s * s
         small = kept & (area < small_area)

@@ -284,6 +284,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--saddle-center-weight", type=float, default=1.0,
                     help="centre-loss weight on the dip between two centres closer than 4 sigma (1 = off; "
                          "validation always uses 1)")
+    ap.add_argument("--center-point", choices=["mass", "blade"], default="mass",
+                    help="where a leaf's centre target lies: its centre of mass (the shipped recipe) or its own "
+                         "pixel nearest to it (targets.blade_points: a curved blade holds its centre)")
     ap.add_argument("--offset-weight", type=float, default=0.01)
     ap.add_argument("--center-focal", type=float, default=0.0,
                     help="weight of a CenterNet focal loss on the centre heatmap, added to the MSE (0 = off; "
@@ -418,7 +421,8 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
                                       max_tip_gap=args.max_tip_gap,
                                       defer_photometric=args.photometric == "device",
                                       center_sigma_min=args.center_sigma_min,
-                                      saddle_center_weight=args.saddle_center_weight) for d in args.data]
+                                      saddle_center_weight=args.saddle_center_weight,
+                                      center_point=args.center_point) for d in args.data]
     except ValueError as e:
         raise SystemExit(str(e)) from e
     if args.preload:
@@ -434,7 +438,8 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
     if args.val_limit and is_main:  # rank 0 alone validates
         try:
             val_ds = PanopticDataset(args.data[0], "val", AugmentConfig.none(), contract, limit=args.val_limit,
-                                     with_tips=args.tips, max_tip_gap=args.max_tip_gap)
+                                     with_tips=args.tips, max_tip_gap=args.max_tip_gap,
+                                     center_point=args.center_point)
         except ValueError:
             print("note: no val split; validation disabled", file=sys.stderr)
     per_epoch = len(train_ds) // (args.batch * world)
@@ -491,6 +496,8 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
         training_data += f" | encoder stem and first {args.freeze_encoder} blocks fixed"
     if args.small_center_weight != 1.0:
         training_data += f" | small-instance centre weight {args.small_center_weight:g}"
+    if args.center_point != "mass":
+        training_data += " | each leaf's centre on its own blade (its pixel nearest the centre of mass)"
     if args.saddle_center_weight != 1.0:
         training_data += f" | centre weight {args.saddle_center_weight:g} on the saddles between neighbours"
     if args.tips:

@@ -186,3 +186,45 @@ def test_centre_focal_loss_prefers_two_peaks_to_one_blob():
     assert center_focal_loss(blob, truth) > 1.3 * center_focal_loss(truth, truth)
     # Without a peak at either centre the focal loss pays per missed centre, not per pixel.
     assert center_focal_loss(torch.zeros_like(truth), truth) > 5.0
+
+
+def test_blade_centre_lies_on_an_arched_leaf_and_a_straight_one_keeps_its_mass_centre(contract):
+    """`--center-point blade`: an arch's centre of mass is in the air under it; the blade's own
+    nearest pixel is on the arch, and every blade pixel's offset points there."""
+    div = contract.label_divisor
+    lab = np.zeros((96, 96), np.int32)
+    # An arch: two legs and a top bar (an upside-down U), one leaf.
+    lab[10:14, 20:76] = div + 1
+    lab[10:70, 20:24] = div + 1
+    lab[10:70, 72:76] = div + 1
+    # A straight leaf, elsewhere.
+    lab[80:84, 10:60] = div + 2
+    mass = make_targets(lab, contract)
+    blade = make_targets(lab, contract, center_point="blade")
+    s = contract.stride
+    order = np.argsort(mass.centers[:, 0])  # the arch's centre is above the straight leaf's
+    arch_mass, arch_blade = mass.centers[order[0]], blade.centers[order[0]]
+    # The arch's centre of mass falls between its legs, below its top bar: off the blade.
+    my, mx = arch_mass * s + (s - 1) / 2
+    assert lab[int(round(my)), int(round(mx))] == 0
+    by, bx = arch_blade * s + (s - 1) / 2
+    assert lab[int(round(by)), int(round(bx))] == div + 1
+    # It is the arch's pixel nearest its centre of mass: the top bar's middle.
+    assert 10 <= by < 14 and abs(bx - mx) <= 2
+    # The straight leaf's centre of mass is on it, so it stays where it was.
+    np.testing.assert_allclose(blade.centers[order[1]], mass.centers[order[1]], atol=1e-5)
+    # Every arch pixel points at the blade centre, so decoding still gives two leaves.
+    ys, xs = np.nonzero(blade.instances == blade.instances[int(arch_blade[0]), int(arch_blade[1])])
+    np.testing.assert_allclose(ys + blade.offset[0, ys, xs], arch_blade[0], atol=1e-4)
+    np.testing.assert_allclose(xs + blade.offset[1, ys, xs], arch_blade[1], atol=1e-4)
+    logits = torch.nn.functional.one_hot(torch.from_numpy(blade.semantic), contract.num_classes)
+    res = decode(logits.permute(2, 0, 1).float(), torch.from_numpy(blade.center), torch.from_numpy(blade.offset),
+                 contract)
+    assert res.leaf_count == 2
+
+
+def test_unknown_centre_point_is_refused(contract):
+    import pytest
+
+    with pytest.raises(ValueError, match="center_point"):
+        make_targets(np.zeros((8, 8), np.int32), contract, center_point="tip")
