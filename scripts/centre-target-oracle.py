@@ -28,7 +28,7 @@ import torch  # noqa: E402
 from phyllo_train.contract import load_contract  # noqa: E402
 from phyllo_train.dataset import read_label, read_manifest  # noqa: E402
 from phyllo_train.postprocess import find_centers  # noqa: E402
-from phyllo_train.targets import blade_points, crowding_sigmas  # noqa: E402
+from phyllo_train.targets import crowding_sigmas, instance_centres  # noqa: E402
 
 
 def leaf_centres(lab: np.ndarray, leaf: int, div: int, s: int, point: str = "mass") -> np.ndarray:
@@ -39,10 +39,7 @@ def leaf_centres(lab: np.ndarray, leaf: int, div: int, s: int, point: str = "mas
     if len(ys) == 0:
         return np.zeros((0, 2))
     _, inv = np.unique(lab[ys, xs], return_inverse=True)
-    area = np.bincount(inv).astype(float)
-    my, mx = np.bincount(inv, weights=ys) / area, np.bincount(inv, weights=xs) / area
-    if point == "blade":
-        my, mx = blade_points(ys, xs, inv, my, mx)
+    my, mx, area = instance_centres(ys, xs, inv, point)
     cy = (my - (s - 1) / 2) / s
     cx = (mx - (s - 1) / 2) / s
     return np.stack([cy, cx], 1)[area >= s * s]
@@ -62,7 +59,8 @@ def main() -> int:
              ("sigma 4, centres on the blade", blade, lambda cs: np.full(len(cs), 4.0)),
              ("sigma 2.5", mass, lambda cs: np.full(len(cs), 2.5)),
              ("crowded centres narrowed, min 2", mass, lambda cs: crowding_sigmas(cs, 4.0, 2.0))]
-    windows = [int(k) for k in sys.argv[3].split(",")] if len(sys.argv) > 3 else [int(c.raw["postprocess"]["nms_kernel"])]
+    contract_window = int(c.raw["postprocess"]["nms_kernel"])
+    windows = [int(k) for k in sys.argv[3].split(",")] if len(sys.argv) > 3 else [contract_window]
     print("| centre target | NMS window | images | counts kept | bias |")
     print("|---|---:|---:|---:|---:|")
     for name, centres, rule in rules:

@@ -168,6 +168,20 @@ def blade_points(ys: np.ndarray, xs: np.ndarray, inv: np.ndarray, my: np.ndarray
             np.where(on_blade, mx, xs[pick]).astype(np.float64))
 
 
+def instance_centres(ys: np.ndarray, xs: np.ndarray, inv: np.ndarray,
+                     center_point: str = "mass") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(centre rows, centre columns, areas) per instance, in the label's input pixels.
+
+    ``ys``, ``xs`` are the instances' pixels and ``inv`` each pixel's instance index;
+    ``center_point`` is ``mass`` (centre of mass) or ``blade`` (:func:`blade_points`).
+    """
+    area = np.bincount(inv).astype(np.float64)
+    my, mx = np.bincount(inv, weights=ys) / area, np.bincount(inv, weights=xs) / area
+    if center_point == "blade":
+        my, mx = blade_points(ys, xs, inv, my, mx)
+    return my, mx, area
+
+
 def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, int, int, int] | None = None,
                  small_area: int = 1024, small_weight: float = 3.0,
                  small_center_weight: float = 1.0, center_sigma_min: float | None = None,
@@ -212,11 +226,8 @@ def make_targets(label: np.ndarray, contract: Contract, *, window: tuple[int, in
     if things.any():
         ys, xs = np.nonzero(things)
         uniq, inv = np.unique(label[ys, xs], return_inverse=True)
-        area = np.bincount(inv).astype(np.float64)
-        # Centre of mass in whole-label input pixels -> output pixel coordinates of the crop.
-        my, mx = np.bincount(inv, weights=ys) / area, np.bincount(inv, weights=xs) / area
-        if center_point == "blade":
-            my, mx = blade_points(ys, xs, inv, my, mx)
+        # Centres in whole-label input pixels -> output pixel coordinates of the crop.
+        my, mx, area = instance_centres(ys, xs, inv, center_point)
         cy = (my - y0 - (s - 1) / 2.0) / s
         cx = (mx - x0 - (s - 1) / 2.0) / s
         # A sliver smaller than one output pixel gets no centre: it cannot be decoded.

@@ -41,6 +41,7 @@ from .encoders import load_pretrained
 from .model import ENCODERS, TipNet, architecture_kwargs, build_model, count_parameters, grow_state, with_tip_head
 from .photometric_torch import finish_batch
 from .run_batches import EpochIndexed, RunBatches
+from .targets import CENTER_POINTS
 from .postprocess import count_agreement, decode, label_leaf_count
 
 
@@ -284,7 +285,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--saddle-center-weight", type=float, default=1.0,
                     help="centre-loss weight on the dip between two centres closer than 4 sigma (1 = off; "
                          "validation always uses 1)")
-    ap.add_argument("--center-point", choices=["mass", "blade"], default="mass",
+    ap.add_argument("--center-point", choices=CENTER_POINTS, default="mass",
                     help="where a leaf's centre target lies: its centre of mass (the shipped recipe) or its own "
                          "pixel nearest to it (targets.blade_points: a curved blade holds its centre)")
     ap.add_argument("--offset-weight", type=float, default=0.01)
