@@ -100,6 +100,12 @@ pub struct Row {
     /// Empty in datasets written before this field existed.
     #[serde(default)]
     pub leaf_tip_gaps: std::collections::BTreeMap<u16, f32>,
+    /// How rolled each visible leaf still is (keys as in `leaf_pixels`): 1 =
+    /// furled in the whorl, 0 = open (the growth model's `furl`, to 0.01).
+    /// A person counting tips sees the whorl's furled leaves as one spike, so
+    /// the trainer's tip truth needs to know them. Empty in older datasets.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub leaf_furl: std::collections::BTreeMap<u16, f32>,
     /// Dead leaves whose remnants (dried sheath, blade stub, labelled stem)
     /// are on the plant; see the preset's `dead_remnant_chance`. Omitted when
     /// 0, so manifests without remnants read as before.
@@ -109,6 +115,20 @@ pub struct Row {
     /// of unzoomed sets read and write as before.
     #[serde(default = "unit_zoom", skip_serializing_if = "is_unit_zoom")]
     pub zoom: f32,
+}
+
+/// The growth model's furl of each visible leaf instance, rounded to 0.01.
+fn leaf_furl(
+    plant: &crate::plant::Plant,
+    visible: &std::collections::BTreeMap<u16, u32>,
+) -> std::collections::BTreeMap<u16, f32> {
+    visible
+        .keys()
+        .filter_map(|&k| {
+            let leaf = plant.state.leaves.get(usize::from(k).checked_sub(1)?)?;
+            Some((k, (leaf.furl * 100.0).round() / 100.0))
+        })
+        .collect()
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -284,6 +304,7 @@ fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) 
             )?;
         }
         let leaf_pixels = out.label.leaf_pixels();
+        let leaf_furl = leaf_furl(&plant, &leaf_pixels);
         let (leaf_tips, leaf_tip_gaps) = tips::leaf_tips(&plant, &scene, &camera, window, &out.label);
         let row = Row {
             image,
@@ -301,6 +322,7 @@ fn render_plant(args: &DatasetArgs, p: u64, views: &[&View], bar: &ProgressBar) 
             crop: [window.x0, window.y0],
             frame: [camera.width, camera.height],
             generator: generator_id(),
+            leaf_furl,
             leaf_tips,
             leaf_tip_gaps,
             dead_remnants: plant.state.remnants.len(),

@@ -49,10 +49,26 @@ class AugmentConfig:
 
     @classmethod
     def none(cls, crop: int | None = None) -> "AugmentConfig":
-        """No augmentation at all (validation); optional centre-free crop size."""
+        """No photometric or geometric augmentation (validation losses); optional crop size.
+
+        The contract's small-plant zoom still applies and a window of ``crop`` (or the tile) is
+        still cut from a plant larger than it, so these samples are not whole plants: never score
+        counts on them against a whole label (``phyllo eval`` counts whole frames).
+        """
         return cls(crop=crop, scale=(1.0, 1.0), hflip=0.0, rot90_top=False, fg_crop=0.0, brightness=0.0,
                    contrast=0.0, saturation=0.0, hue=0.0, gamma=(1.0, 1.0), white_balance=0.0,
                    gradient=0.0, blur_p=0.0, noise_p=0.0, jpeg_p=0.0, fringe_p=0.0, backlight_p=0.0)
+
+
+def _scale_range(text: str) -> tuple[float, float]:
+    """``--scale`` parser: ``LO,HI`` positive factors."""
+    try:
+        lo, hi = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LO,HI, got {text!r}") from None
+    if not 0 < lo <= hi:
+        raise argparse.ArgumentTypeError(f"expected 0 < LO <= HI, got {text!r}")
+    return lo, hi
 
 
 def _sigma_range(text: str) -> tuple[float, float]:
@@ -73,6 +89,10 @@ def add_noise_args(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--noise-sigma", type=_sigma_range, default=None,
                     help="noise standard deviation range LO,HI in 0..255 units (default "
                          f"{AugmentConfig.noise_sigma[0]:g},{AugmentConfig.noise_sigma[1]:g})")
+    ap.add_argument("--scale", type=_scale_range, default=None,
+                    help="log-uniform scale jitter LO,HI around the contract scale (default "
+                         f"{AugmentConfig.scale[0]:g},{AugmentConfig.scale[1]:g}); wider ranges teach a count "
+                         "that does not hinge on the plant's size in the tile")
 
 
 def with_noise_args(cfg: AugmentConfig, args: argparse.Namespace) -> AugmentConfig:
@@ -81,6 +101,8 @@ def with_noise_args(cfg: AugmentConfig, args: argparse.Namespace) -> AugmentConf
         cfg.noise_p = args.noise_p
     if args.noise_sigma is not None:
         cfg.noise_sigma = args.noise_sigma
+    if getattr(args, "scale", None) is not None:
+        cfg.scale = args.scale
     return cfg
 
 

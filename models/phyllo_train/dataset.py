@@ -14,6 +14,7 @@ from torch.utils.data import Dataset
 from .augment import AugmentConfig, apply_photometric, augment_geometry, draw_photometric
 from .contract import Contract, load_contract
 from .targets import make_targets, tip_heatmap
+from .tip_truth import TIP_RULES, tip_targets
 
 REQUIRED_KEYS = ("image", "label", "split")
 
@@ -79,7 +80,7 @@ class PanopticDataset(Dataset):
                  contract: Contract | None = None, seed: int = 0, limit: int | None = None,
                  small_center_weight: float = 1.0, with_tips: bool = False, max_tip_gap: float | None = None,
                  defer_photometric: bool = False, center_sigma_min: float | None = None,
-                 saddle_center_weight: float = 1.0, center_point: str = "mass"):
+                 saddle_center_weight: float = 1.0, center_point: str = "mass", tip_rule: str = "visible"):
         self.root = Path(root)
         self.contract = contract or load_contract()
         self.rows = read_manifest(self.root, split)[: limit]
@@ -99,9 +100,12 @@ class PanopticDataset(Dataset):
                 raise ValueError(f"{self.root / 'manifest.jsonl'}: {len(missing)} rows have no leaf_tips "
                                  f"(first: {missing[0]}); render the set with a phyllo-gen that writes them")
         self.max_tip_gap = max_tip_gap
+        if tip_rule not in TIP_RULES:
+            raise ValueError(f"unknown tip rule {tip_rule!r} (expected one of {', '.join(TIP_RULES)})")
+        self.tip_rule = tip_rule
         self.defer_photometric = defer_photometric
         self.decoded: list[tuple[np.ndarray, np.ndarray]] | None = None  # see preload()
-        if with_tips and max_tip_gap is not None:
+        if with_tips and (max_tip_gap is not None or tip_rule == "person"):
             missing = [r["image"] for r in self.rows if r.get("leaf_tips") and "leaf_tip_gaps" not in r]
             if missing:
                 raise ValueError(f"{self.root / 'manifest.jsonl'}: {len(missing)} rows have no leaf_tip_gaps "
@@ -153,12 +157,10 @@ class PanopticDataset(Dataset):
         if cfg.crop is None:
             # Full tiles: crop back to the original size so H, W stay multiples of 32.
             cfg = AugmentConfig(**{**cfg.__dict__, "crop": min(label.shape) // 32 * 32})
-        tip_items = row.get("leaf_tips", {}).items()
-        if self.with_tips and self.max_tip_gap is not None:
-            # A tip far from anything the image shows of its leaf is hidden: no target for it.
-            gaps = row.get("leaf_tip_gaps", {})
-            tip_items = [(k, v) for k, v in tip_items if gaps.get(k, 0.0) <= self.max_tip_gap]
-        tips = np.array([v for _, v in tip_items], np.float64).reshape(-1, 2)
+        # Hidden tips (and, under the person rule, all but the whorl's point) get no target.
+        tip_items = (tip_targets(row, self.tip_rule, self.max_tip_gap) if self.with_tips
+                     else row.get("leaf_tips", {}))
+        tips = np.array(list(tip_items.values()), np.float64).reshape(-1, 2)
         top_view = is_top_view(row)
         rgb, label, window, tips, plant = augment_geometry(
             img, label, cfg, rng, top_view=top_view, label_divisor=self.contract.label_divisor,

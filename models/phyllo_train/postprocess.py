@@ -30,12 +30,31 @@ class Panoptic:
 
 
 def find_centers(center: torch.Tensor, threshold: float, nms_kernel: int, top_k: int) -> torch.Tensor:
-    """(1, h, w) heatmap -> (K, 2) integer (y, x) local maxima above ``threshold``, strongest first."""
-    pooled = F.max_pool2d(center[None], nms_kernel, stride=1, padding=nms_kernel // 2)[0]
-    keep = (center == pooled) & (center > threshold)
-    ys, xs = torch.nonzero(keep[0], as_tuple=True)
-    scores = center[0, ys, xs]
-    order = torch.argsort(scores, descending=True)[:top_k]
+    """(1, h, w) heatmap -> (K, 2) integer (y, x) local maxima at or above ``threshold``, strongest first.
+
+    The Rust decoder's rule (``inference/src/postprocess.rs::find_peaks``), exactly: a pixel is a peak
+    when it equals the max-pool of its ``nms_kernel`` window, and of equal values within that window
+    only the first in raster order is kept, so a plateau (common when the map is rounded, e.g. to
+    bfloat16) gives one peak, not one per pixel. Ties in score are ordered by (y, x).
+    """
+    heat = center[0]
+    h, w = heat.shape
+    r = nms_kernel // 2
+    pooled = F.max_pool2d(center[None], nms_kernel, stride=1, padding=r)[0, 0]
+    keep = (heat == pooled) & (heat >= threshold)
+    if keep.any():
+        # An equal value at an earlier raster position within the window: (dy < 0, any dx) or (0, dx < 0).
+        padded = F.pad(heat[None, None], (r, r, r, r), value=float("nan"))[0, 0]
+        earlier_tie = torch.zeros_like(keep)
+        for dy in range(-r, 1):
+            for dx in range(-r, r + 1):
+                if dy == 0 and dx >= 0:
+                    break
+                earlier_tie |= padded[r + dy:r + dy + h, r + dx:r + dx + w] == heat
+        keep &= ~earlier_tie
+    ys, xs = torch.nonzero(keep, as_tuple=True)  # raster order
+    scores = heat[ys, xs]
+    order = torch.argsort(scores, descending=True, stable=True)[:top_k]
     return torch.stack([ys[order], xs[order]], dim=1)
 
 

@@ -34,7 +34,7 @@ from torch.utils.data import DataLoader
 from .augment import AugmentConfig, add_noise_args, with_noise_args
 from .contract import Contract, load_contract
 from . import ddp, distill
-from .dataset import PanopticDataset, read_label, read_manifest
+from .dataset import PanopticDataset, read_manifest
 from .ema import ModelEma
 from .losses import LossWeights, panoptic_loss, tip_focal_loss
 from .encoders import load_pretrained
@@ -42,7 +42,7 @@ from .model import ENCODERS, TipNet, architecture_kwargs, build_model, count_par
 from .photometric_torch import finish_batch
 from .run_batches import EpochIndexed, RunBatches
 from .targets import CENTER_POINTS
-from .postprocess import count_agreement, decode, label_leaf_count
+from .tip_truth import TIP_RULES
 
 
 def seed_everything(seed: int) -> None:
@@ -228,30 +228,24 @@ def freeze_encoder(model: torch.nn.Module, blocks: int) -> list[torch.nn.Module]
 @torch.no_grad()
 def evaluate(model: torch.nn.Module, ds: PanopticDataset, device: torch.device, w: LossWeights,
              batch: int, tip_weight: float = 1.0) -> dict[str, float]:
-    """Validation losses on full tiles plus leaf-count agreement against the labels."""
+    """Validation losses (the training losses, on the validation split's samples).
+
+    No counts: the samples are windows of plants that the small-plant zoom may have enlarged past the
+    tile, while a count's truth is the whole plant, so counts on them are wrong in absolute terms.
+    Checkpoints are counted on whole frames by ``phyllo eval`` (``scripts/score-checkpoints.sh``).
+    """
     model.eval()
-    contract = ds.contract
     sums: Counter = Counter()
     n = 0
-    errs = []
     for i in range(0, len(ds), batch):
         xs, ts = collate([ds[j] for j in range(i, min(len(ds), i + batch))])
         xs = xs.to(device).contiguous(memory_format=torch.channels_last)
         ts = {k: v.to(device) for k, v in ts.items()}
-        out, _, parts = forward_losses(model, xs, ts, w, tip_weight)
+        _, _, parts = forward_losses(model, xs, ts, w, tip_weight)
         for k, v in parts.items():
             sums[k] += v * len(xs)
-        for b in range(len(xs)):
-            j = i + b
-            row = ds.rows[j]
-            # Truth = leaves the model can show at its stride with the contract's minimum area;
-            # the manifest's visible_leaf_count also counts slivers of a few pixels.
-            truth = label_leaf_count(read_label(ds.root / row["label"]), contract)
-            pred = decode(out[0][b].cpu(), out[1][b].cpu(), out[2][b].cpu(), contract).leaf_count
-            errs.append(pred - int(truth))
         n += len(xs)
     res = {f"val_{k}": v / n for k, v in sums.items()}
-    res.update(zip(("val_exact", "val_within1", "val_rmse", "val_bias"), count_agreement(errs)))
     model.train()
     return res
 
@@ -268,6 +262,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--minutes", type=float, default=None,
                     help="wall-clock budget: the LR schedule follows time or steps, whichever is further, "
                          "and training ends when the budget is spent (checkpoints and validation as at the last step)")
+    ap.add_argument("--stop-after", type=float, default=None, metavar="MINUTES",
+                    help="pause after this many wall-clock minutes of this invocation: write last.pt and exit; "
+                         "the LR schedule still follows steps, so the same command resumes the same schedule "
+                         "(a long schedule spread over sessions)")
     ap.add_argument("--crop", type=int, default=256, help="random crop side in input px; 0 = full tiles")
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--lr", type=float, default=2e-3)
@@ -339,6 +337,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--max-tip-gap", type=float, default=None,
                     help="with --tips: no tip target for leaves whose manifest leaf_tip_gaps exceeds this many "
                          "image pixels (hidden tips, which annotators do not mark)")
+    ap.add_argument("--tip-rule", choices=TIP_RULES, default="visible",
+                    help="with --tips: which tips are targets: every visible leaf's, or those a person would "
+                         "click (phyllo_train.tip_truth: seen tips, the whorl's furled leaves as one point)")
     ap.add_argument("--teacher", type=Path, default=None,
                     help="a checkpoint whose centre heatmap (and offsets, per --distill) replaces the side "
                          "views' label targets (phyllo_train.distill says why); top views keep their labels")
@@ -419,7 +420,7 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
     try:
         train_sets = [PanopticDataset(d, "train", aug, contract, seed=args.seed, limit=args.limit,
                                       small_center_weight=args.small_center_weight, with_tips=args.tips,
-                                      max_tip_gap=args.max_tip_gap,
+                                      max_tip_gap=args.max_tip_gap, tip_rule=args.tip_rule,
                                       defer_photometric=args.photometric == "device",
                                       center_sigma_min=args.center_sigma_min,
                                       saddle_center_weight=args.saddle_center_weight,
@@ -439,7 +440,7 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
     if args.val_limit and is_main:  # rank 0 alone validates
         try:
             val_ds = PanopticDataset(args.data[0], "val", AugmentConfig.none(), contract, limit=args.val_limit,
-                                     with_tips=args.tips, max_tip_gap=args.max_tip_gap,
+                                     with_tips=args.tips, max_tip_gap=args.max_tip_gap, tip_rule=args.tip_rule,
                                      center_point=args.center_point)
         except ValueError:
             print("note: no val split; validation disabled", file=sys.stderr)
@@ -479,6 +480,8 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
         training_data += f" | centre sigma {args.center_sigma:g} output px"
     if args.zoom_height is not None:
         training_data += f" | training zoom height {args.zoom_height} rows"
+    if args.scale is not None:
+        training_data += f" | scale jitter {args.scale[0]:g}-{args.scale[1]:g}"
     if args.freeze_bn:
         training_data += " | BatchNorm statistics frozen"
     if args.center_focal > 0:
@@ -503,6 +506,8 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
         training_data += f" | centre weight {args.saddle_center_weight:g} on the saddles between neighbours"
     if args.tips:
         training_data += f" | tip head (width {args.tip_width}) trained jointly, weight {args.tip_weight:g}"
+        if args.tip_rule == "person":
+            training_data += ", tips a person would click (seen, the whorl's furled leaves one point)"
         if args.max_tip_gap is not None:
             training_data += f", tips with a gap over {args.max_tip_gap:g} px left out"
 
@@ -603,6 +608,7 @@ def train_loop(args: argparse.Namespace, run: Run, train_ds: EpochIndexed, val_d
     t_last, imgs_since = time.perf_counter(), 0
     t_start = time.perf_counter()
     budget_s = args.minutes * 60 if args.minutes else None
+    stop_s = args.stop_after * 60 if args.stop_after else None
     # One loader for the whole run: its workers start once, not at every epoch (run_batches).
     loader = DataLoader(train_ds, batch_sampler=RunBatches(len(train_ds), args.batch * world, args.seed, step, total,
                                                                 run.rank, world),
@@ -639,6 +645,7 @@ def train_loop(args: argparse.Namespace, run: Run, train_ds: EpochIndexed, val_d
         step += 1
         if budget_s and ddp.rank0_value(time.perf_counter() - t_start, world) >= budget_s:
             total = step  # the time is spent: this step is the last
+        pause = bool(stop_s) and ddp.rank0_value(time.perf_counter() - t_start, world) >= stop_s
         imgs_since += len(xs) * world
         for k, v in parts.items():
             run_avg[k] = v if k not in run_avg else 0.9 * run_avg[k] + 0.1 * v
@@ -656,9 +663,10 @@ def train_loop(args: argparse.Namespace, run: Run, train_ds: EpochIndexed, val_d
                    f"{rate:.1f} img/s, data wait {100 * data_wait:.0f}% | "
                    f"lr {opt.param_groups[0]['lr']:.2e} | eta {int(eta // 60)}m{int(eta % 60):02d}s")
             print(("\r" + msg) if tty else msg, end="" if tty else "\n", flush=True)
-            log.write(json.dumps({"step": step, "epoch": epoch, "rate": rate, "data_wait": data_wait, **run_avg}) + "\n")
+            log.write(json.dumps({"step": step, "epoch": epoch, "lr": lr, "rate": rate, "data_wait": data_wait,
+                                 **run_avg}) + "\n")
             log.flush()
-        if step % args.ckpt_every == 0 or step == total:
+        if step % args.ckpt_every == 0 or step == total or pause:
             checkpoint(last)
         if args.keep_every and step % args.keep_every == 0:
             checkpoint(args.out / f"step-{step:06d}.pt")
@@ -675,6 +683,11 @@ def train_loop(args: argparse.Namespace, run: Run, train_ds: EpochIndexed, val_d
                 best = res["val_loss"]
                 checkpoint(args.out / "best.pt")
             checkpoint(last)
+        if pause:
+            print(f"\npaused at step {step}/{total} after {args.stop_after:g} min (--stop-after); "
+                  f"the same command resumes from {last}", flush=True)
+            log.close()
+            return 0
     if tty:
         print()
     if val_ds is None or not (args.out / "best.pt").exists():

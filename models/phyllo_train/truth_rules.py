@@ -15,7 +15,9 @@ age (seedlings are where counting is hardest)::
 edge): truth is the number of leaves whose tip gap (the manifest's
 ``leaf_tip_gaps``, the distance from the projected blade tip to the nearest
 pixel of that leaf; phyllo-gen since session 15) is at most each given number
-of image pixels.
+of image pixels. ``--person`` adds the tip rule the tip head trains on
+(:mod:`phyllo_train.tip_truth`: seen tips, the whorl's furled leaves as one
+point).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from .dataset import read_manifest
+from .tip_truth import MAX_TIP_GAP, person_count
 
 
 # Seedlings, young plants, grown plants.
@@ -57,6 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("per_image", type=Path, help="saved output of phyllo eval --per-image")
     ap.add_argument("--tip-gaps", default="", help="comma-separated largest tip gaps (image pixels) for the "
                     "visible-tip rule, e.g. 4,8,16")
+    ap.add_argument("--person", action="store_true",
+                    help=f"add the person's tip rule (tip gap <= {MAX_TIP_GAP:g} px, the whorl once)")
     args = ap.parse_args(argv)
     gap_limits = [float(g) for g in args.tip_gaps.split(",") if g.strip()]
     with open(args.per_image, encoding="utf-8") as f:
@@ -64,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     if not scored:
         raise SystemExit(f"{args.per_image}: no per-image lines (was --per-image given?)")
     by_image = {str(args.dataset / r["image"]): r for r in read_manifest(args.dataset)}
-    countable, visible, pred, age, gaps = [], [], [], [], []
+    countable, visible, pred, age, gaps, person = [], [], [], [], [], []
     for path, (t, p) in scored.items():
         row = by_image.get(path) or by_image.get(str(Path(path)))
         if row is None:
@@ -73,6 +78,7 @@ def main(argv: list[str] | None = None) -> int:
         visible.append(int(row["visible_leaf_count"]))
         pred.append(p)
         age.append(float(row.get("age_days", "nan")))
+        person.append(person_count(row))
         if gap_limits:
             if not row.get("leaf_tip_gaps") and int(row["visible_leaf_count"]) > 0:
                 raise SystemExit(f"{path}: the manifest has no leaf_tip_gaps (written before phyllo-gen had them); "
@@ -82,6 +88,8 @@ def main(argv: list[str] | None = None) -> int:
     rules = [("as phyllo eval ran (--truth-min-pixels)", countable), ("every visible leaf", visible)]
     rules += [(f"leaves whose tip is seen (tip gap <= {g:g} px)", [sum(x <= g for x in gs) for gs in gaps])
               for g in gap_limits]
+    if args.person:
+        rules.append(("tips a person would click (phyllo_train.tip_truth)", person))
     print("| truth rule | images | exact | within ±1 | RMSE | MAE | bias |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     for name, t in rules:

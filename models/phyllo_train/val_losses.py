@@ -1,13 +1,14 @@
-"""Validation losses and counts of training checkpoints on one phyllo-gen split, side by side.
+"""Validation losses of training checkpoints on one phyllo-gen split, side by side.
 
     python -m phyllo_train.val_losses --data /work/data/calib-s700001 --split val --limit 120 \\
         runs/s10-onnx/best.pt runs/RUN/step-000300.pt
 
 One row per checkpoint (its exported, EMA weights): the training losses on
-whole tiles without augmentation, and the count agreement of the Python
-decoder on those tiles (no small-plant zoom, so lower than `phyllo eval`'s).
-It asks whether a lower training loss means a better count, which for the
-centre MSE it does not (models/EXPERIMENTS.md, "The centre loss and the count").
+the split's samples without photometric augmentation (the small-plant zoom
+and a window of the tile's size still apply, as in training). No counts:
+count checkpoints on whole frames with `phyllo eval`
+(`scripts/score-checkpoints.sh`); a lower centre MSE does not mean a better
+count (models/EXPERIMENTS.md, "The centre loss and the count").
 """
 
 from __future__ import annotations
@@ -41,8 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     contract = load_contract()
     ds = PanopticDataset(args.data, args.split, AugmentConfig.none(), contract, limit=args.limit)
     weights = LossWeights(center_focal=args.center_focal)
-    cols = ["loss", "sem", "center", "offset"] + (["focal"] if args.center_focal > 0 else []) + [
-        "exact", "within1", "rmse", "bias"]
+    cols = ["loss", "sem", "center", "offset"] + (["focal"] if args.center_focal > 0 else [])
     print(f"{len(ds)} images of {args.data} ({args.split})\n")
     print("| checkpoint | " + " | ".join(cols) + " |")
     print("|---|" + "---:|" * len(cols))

@@ -180,3 +180,43 @@ def test_cpu_bf16_support_is_read_from_the_cpu_flags():
     assert train.cpu_has_bf16(amd) is False
     assert train.cpu_has_bf16(sapphire) is True
     assert train.cpu_has_bf16("no flags line here") is None
+
+
+def test_a_paused_schedule_goes_on_from_its_packed_resume_point(tiny_dataset, tmp_path):
+    """--stop-after pauses without bending the schedule (resumed, the run is the uninterrupted one
+    exactly); the packed resume point keeps weights exactly and the moments to bfloat16."""
+    from phyllo_train import resume_state
+
+    def common(out):
+        return ["--data", str(tiny_dataset), "--out", str(out), "--crop", "64", "--batch", "2", "--workers", "0",
+                "--val-limit", "0", "--log-every", "1", "--warmup", "2", "--steps", "4", "--seed", "5"]
+
+    def lrs(run):
+        return [json.loads(line).get("lr") for line in (run / "log.jsonl").read_text().splitlines()]
+
+    straight = tmp_path / "straight"
+    assert train.main(common(straight)) == 0
+    paused = tmp_path / "paused"
+    assert train.main(common(paused) + ["--stop-after", "1e-9"]) == 0
+    first = torch.load(paused / "last.pt", weights_only=False)
+    assert first["step"] == 1 and not (paused / "best.pt").exists()
+
+    packed = tmp_path / "resume.pt"
+    assert resume_state.main(["pack", str(paused / "last.pt"), "--out", str(packed)]) == 0
+    assert packed.stat().st_size < (paused / "last.pt").stat().st_size
+    back = resume_state.unpack(torch.load(packed, weights_only=False))
+    for part in ("raw_model", "model"):
+        for k, v in first[part].items():
+            assert torch.equal(back[part][k], v), (part, k)
+    for k, st in first["optimizer"]["state"].items():
+        for n in ("exp_avg", "exp_avg_sq"):
+            assert back["optimizer"]["state"][k][n].dtype == torch.float32
+            torch.testing.assert_close(back["optimizer"]["state"][k][n], st[n], rtol=1 / 128, atol=0)
+
+    assert train.main(common(paused)) == 0  # resumes from the unpacked-free last.pt
+    a = torch.load(straight / "last.pt", weights_only=False)
+    b = torch.load(paused / "last.pt", weights_only=False)
+    assert a["step"] == b["step"] == 4
+    for k, v in a["raw_model"].items():
+        assert torch.equal(b["raw_model"][k], v), k
+    assert lrs(paused) == lrs(straight) and len(lrs(straight)) == 4
