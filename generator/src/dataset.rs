@@ -102,8 +102,8 @@ pub struct Row {
     pub leaf_tip_gaps: std::collections::BTreeMap<u16, f32>,
     /// How rolled each visible leaf still is (keys as in `leaf_pixels`): 1 =
     /// furled in the whorl, 0 = open (the growth model's `furl`, to 0.01).
-    /// A person counting tips sees the whorl's furled leaves as one spike, so
-    /// the trainer's tip truth needs to know them. Empty in older datasets.
+    /// Lets a truth rule tell the whorl's leaves from expanded ones (the real
+    /// crops' counts look like expanded leaves only). Empty in older datasets.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub leaf_furl: std::collections::BTreeMap<u16, f32>,
     /// Dead leaves whose remnants (dried sheath, blade stub, labelled stem)
@@ -361,5 +361,20 @@ mod tests {
             "{text}"
         );
         assert_eq!(serde_json::from_str::<Row>(&text).unwrap(), row);
+    }
+
+    #[test]
+    fn leaf_furl_covers_the_visible_leaves_and_young_leaves_are_rolled() {
+        let preset = crate::plant::preset::Preset::load("btx623").unwrap();
+        let traits = crate::plant::growth::PlantTraits::sample(&preset, 11);
+        let plant = crate::plant::Plant::build(&traits, 30.0);
+        let n = plant.state.leaves.len() as u16;
+        // Leaf 2 and the youngest leaf are visible; an instance past the plant's leaves is ignored.
+        let visible = [(2, 50), (n, 9), (n + 1, 4)].into();
+        let furl = leaf_furl(&plant, &visible);
+        assert_eq!(furl.keys().copied().collect::<Vec<_>>(), vec![2, n]);
+        assert_eq!(furl[&2], 0.0, "a low leaf is open");
+        assert!(furl[&n] > 0.5, "the youngest leaf is still in the whorl: {}", furl[&n]);
+        assert!(furl.values().all(|f| (0.0..=1.0).contains(f)));
     }
 }

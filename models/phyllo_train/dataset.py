@@ -157,7 +157,7 @@ class PanopticDataset(Dataset):
         if cfg.crop is None:
             # Full tiles: crop back to the original size so H, W stay multiples of 32.
             cfg = AugmentConfig(**{**cfg.__dict__, "crop": min(label.shape) // 32 * 32})
-        # Hidden tips (and, under the person rule, all but the whorl's point) get no target.
+        # Hidden tips (and, under the person rule, a tip coinciding with a higher one) get no target.
         tip_items = (tip_targets(row, self.tip_rule, self.max_tip_gap) if self.with_tips
                      else row.get("leaf_tips", {}))
         tips = np.array(list(tip_items.values()), np.float64).reshape(-1, 2)

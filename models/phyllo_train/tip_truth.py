@@ -1,43 +1,55 @@
 """Which leaf tips a person would click: the truth rule of the tip heatmap and of tip counts.
 
-The real sets' annotators (Miao et al. 2021; ``leaf_tips.csv``) click the tip of each leaf they
-can see, intact or cut by the image's edge. Three things in a phyllo-gen manifest decide whether
-a leaf has such a tip:
+The real frames' annotators (Miao et al. 2021; ``leaf_tips.csv``) click the tip of each leaf they
+can see, intact or cut. Their marks on the dev frames settle the two open questions: a furled leaf
+standing out of the whorl is clicked like any other (``402-127…05-10`` has two marks in its whorl,
+``402-204…05-28`` one on its spike), and a leaf whose tip is behind another leaf is not. So, from a
+phyllo-gen manifest row, a tip counts when
 
-* the leaf is visible at all (it has label pixels: the keys of ``leaf_tips``);
+* its leaf is visible (it has label pixels: the keys of ``leaf_tips``);
 * its tip is seen: ``leaf_tip_gaps`` (projected blade tip to the nearest pixel of that leaf) is at
   most ``max_gap`` image pixels. Gaps spread smoothly (median 2.5 px, 90th percentile 7 px over the
   withheld set's leaves, models/EXPERIMENTS.md "The visible-tip truth rule"), so the limit sits
-  above the tapering blade's few pixels and below a tip hidden behind another leaf;
-* furled leaves are one spike: leaves still rolled in the whorl (``leaf_furl`` ≥ ``WHORL_FURL``)
-  stand nested in one cone, and a person sees the cone's point, not one point per leaf. Of the
-  whorl's furled leaves with a seen tip, only the one whose tip is highest in the image counts.
+  above the tapering blade's last pixels and below a tip hidden behind another leaf;
+* it is a point of its own: tips closer than ``MERGE_PX`` to a tip already counted (taken top to
+  bottom) look like one point, as nested leaves of the whorl often do in renders.
 
-Manifests without ``leaf_furl`` (written before it existed) treat every leaf as open.
+The crops' counts (``crops_counts.csv``, no marks) look like expanded leaves only on young plants
+(models/EXPERIMENTS.md, session 47), so :func:`open_tips` gives that reading too, for reports
+only: the same rule without the leaves still furled in the whorl (``leaf_furl`` ≥ ``WHORL_FURL``,
+phyllo-gen since session 48; rows without it count every leaf as open).
 """
 
 from __future__ import annotations
 
+import math
+
 # Tip gaps above this many image pixels (at the contract's frame scale) are hidden tips.
 MAX_TIP_GAP = 12.0
+# Tips nearer each other than this many image pixels (at frame scale) are one point to a person.
+MERGE_PX = 3.0
 # A leaf at least this rolled (the growth model's furl: 1 furled, 0 open) is still in the whorl.
 WHORL_FURL = 0.5
-# The truth rules a tip target or a tip count can follow.
+# The truth rules a tip target can follow.
 TIP_RULES = ("visible", "person")
 
 
 def person_tips(row: dict, max_gap: float = MAX_TIP_GAP) -> dict[str, list[float]]:
     """``{instance: [x, y]}`` of the tips a person would click on one manifest row (see the module)."""
-    tips = row.get("leaf_tips", {})
     gaps = row.get("leaf_tip_gaps", {})
-    furl = row.get("leaf_furl", {})
-    seen = {k: xy for k, xy in tips.items() if gaps.get(k, 0.0) <= max_gap}
-    out = {k: xy for k, xy in seen.items() if furl.get(k, 0.0) < WHORL_FURL}
-    whorl = [(xy[1], int(k), k) for k, xy in seen.items() if furl.get(k, 0.0) >= WHORL_FURL]
-    if whorl:
-        _, _, k = min(whorl)  # highest tip; ties go to the lower instance number
-        out[k] = seen[k]
+    seen = sorted(((xy[1], xy[0], int(k), k) for k, xy in row.get("leaf_tips", {}).items()
+                   if gaps.get(k, 0.0) <= max_gap))
+    out: dict[str, list[float]] = {}
+    for y, x, _, k in seen:
+        if all(math.hypot(x - p[0], y - p[1]) >= MERGE_PX for p in out.values()):
+            out[k] = [x, y]
     return out
+
+
+def open_tips(row: dict, max_gap: float = MAX_TIP_GAP) -> dict[str, list[float]]:
+    """:func:`person_tips` without the leaves still furled in the whorl (the crops' apparent reading)."""
+    furl = row.get("leaf_furl", {})
+    return {k: xy for k, xy in person_tips(row, max_gap).items() if furl.get(k, 0.0) < WHORL_FURL}
 
 
 def tip_targets(row: dict, rule: str, max_gap: float | None) -> dict[str, list[float]]:
@@ -57,3 +69,8 @@ def tip_targets(row: dict, rule: str, max_gap: float | None) -> dict[str, list[f
 def person_count(row: dict, max_gap: float = MAX_TIP_GAP) -> int:
     """The leaf count a person clicking tips would give this row."""
     return len(person_tips(row, max_gap))
+
+
+def open_count(row: dict, max_gap: float = MAX_TIP_GAP) -> int:
+    """:func:`person_count` of expanded leaves only."""
+    return len(open_tips(row, max_gap))

@@ -339,7 +339,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "image pixels (hidden tips, which annotators do not mark)")
     ap.add_argument("--tip-rule", choices=TIP_RULES, default="visible",
                     help="with --tips: which tips are targets: every visible leaf's, or those a person would "
-                         "click (phyllo_train.tip_truth: seen tips, the whorl's furled leaves as one point)")
+                         "click (phyllo_train.tip_truth: each seen tip, coinciding tips once)")
     ap.add_argument("--teacher", type=Path, default=None,
                     help="a checkpoint whose centre heatmap (and offsets, per --distill) replaces the side "
                          "views' label targets (phyllo_train.distill says why); top views keep their labels")
@@ -507,7 +507,7 @@ def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int
     if args.tips:
         training_data += f" | tip head (width {args.tip_width}) trained jointly, weight {args.tip_weight:g}"
         if args.tip_rule == "person":
-            training_data += ", tips a person would click (seen, the whorl's furled leaves one point)"
+            training_data += ", tips a person would click (each seen tip, coinciding tips once)"
         if args.max_tip_gap is not None:
             training_data += f", tips with a gap over {args.max_tip_gap:g} px left out"
 

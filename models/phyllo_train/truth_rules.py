@@ -16,8 +16,8 @@ edge): truth is the number of leaves whose tip gap (the manifest's
 ``leaf_tip_gaps``, the distance from the projected blade tip to the nearest
 pixel of that leaf; phyllo-gen since session 15) is at most each given number
 of image pixels. ``--person`` adds the tip rule the tip head trains on
-(:mod:`phyllo_train.tip_truth`: seen tips, the whorl's furled leaves as one
-point).
+(:mod:`phyllo_train.tip_truth`: each seen tip, coinciding tips once) and the
+same without the leaves still furled in the whorl.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from .dataset import read_manifest
-from .tip_truth import MAX_TIP_GAP, person_count
+from .tip_truth import MAX_TIP_GAP, open_count, person_count
 
 
 # Seedlings, young plants, grown plants.
@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tip-gaps", default="", help="comma-separated largest tip gaps (image pixels) for the "
                     "visible-tip rule, e.g. 4,8,16")
     ap.add_argument("--person", action="store_true",
-                    help=f"add the person's tip rule (tip gap <= {MAX_TIP_GAP:g} px, the whorl once)")
+                    help=f"add the person's tip rule (tip gap <= {MAX_TIP_GAP:g} px), and it without furled leaves")
     args = ap.parse_args(argv)
     gap_limits = [float(g) for g in args.tip_gaps.split(",") if g.strip()]
     with open(args.per_image, encoding="utf-8") as f:
@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     if not scored:
         raise SystemExit(f"{args.per_image}: no per-image lines (was --per-image given?)")
     by_image = {str(args.dataset / r["image"]): r for r in read_manifest(args.dataset)}
-    countable, visible, pred, age, gaps, person = [], [], [], [], [], []
+    countable, visible, pred, age, gaps, person, opened = [], [], [], [], [], [], []
     for path, (t, p) in scored.items():
         row = by_image.get(path) or by_image.get(str(Path(path)))
         if row is None:
@@ -79,6 +79,7 @@ def main(argv: list[str] | None = None) -> int:
         pred.append(p)
         age.append(float(row.get("age_days", "nan")))
         person.append(person_count(row))
+        opened.append(open_count(row))
         if gap_limits:
             if not row.get("leaf_tip_gaps") and int(row["visible_leaf_count"]) > 0:
                 raise SystemExit(f"{path}: the manifest has no leaf_tip_gaps (written before phyllo-gen had them); "
@@ -90,6 +91,7 @@ def main(argv: list[str] | None = None) -> int:
               for g in gap_limits]
     if args.person:
         rules.append(("tips a person would click (phyllo_train.tip_truth)", person))
+        rules.append(("the same, expanded leaves only (no leaf furled in the whorl)", opened))
     print("| truth rule | images | exact | within ±1 | RMSE | MAE | bias |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     for name, t in rules:

@@ -1,8 +1,8 @@
-"""The tip truth rule: seen tips count, the whorl's furled leaves count once."""
+"""The tip truth rule: seen tips count, one per visible point."""
 
 import pytest
 
-from phyllo_train.tip_truth import MAX_TIP_GAP, person_count, person_tips, tip_targets
+from phyllo_train.tip_truth import MAX_TIP_GAP, MERGE_PX, open_count, person_count, person_tips, tip_targets
 
 
 def row(tips, gaps, furl=None):
@@ -12,33 +12,27 @@ def row(tips, gaps, furl=None):
     return r
 
 
-def test_open_leaves_with_seen_tips_count_hidden_ones_do_not():
-    r = row({"1": [10, 90], "2": [40, 60], "3": [70, 50]}, {"1": 1.0, "2": MAX_TIP_GAP + 0.5, "3": 3.0},
-            {"1": 0.0, "2": 0.0, "3": 0.2})
+def test_seen_tips_count_hidden_ones_do_not():
+    r = row({"1": [10, 90], "2": [40, 60], "3": [70, 50]}, {"1": 1.0, "2": MAX_TIP_GAP + 0.5, "3": 3.0})
     assert sorted(person_tips(r)) == ["1", "3"]
     assert person_count(r) == 2
 
 
-def test_the_whorls_furled_leaves_are_one_point_the_highest_tip():
-    r = row({"1": [10, 90], "2": [50, 30], "3": [52, 12], "4": [51, 20]}, {k: 1.0 for k in "1234"},
-            {"1": 0.0, "2": 0.9, "3": 1.0, "4": 0.6})
+def test_furled_leaves_standing_out_count_like_any_other_and_coinciding_tips_once():
+    r = row({"1": [10, 90], "2": [50, 30], "3": [52, 12], "4": [52 + MERGE_PX / 2, 12.5]},
+            {k: 1.0 for k in "1234"}, {"1": 0.0, "2": 0.9, "3": 1.0, "4": 1.0})
     tips = person_tips(r)
-    assert sorted(tips) == ["1", "3"], "leaf 3's tip is the highest of the whorl"
-    assert tips["3"] == [52, 12]
+    assert sorted(tips) == ["1", "2", "3"], "leaf 4's tip coincides with leaf 3's, the higher one"
+    assert open_count(r) == 1, "expanded leaves only: the whorl's three are left out"
 
 
-def test_a_whorl_whose_tips_are_all_hidden_adds_nothing():
-    r = row({"1": [10, 90], "2": [50, 30]}, {"1": 1.0, "2": 40.0}, {"1": 0.0, "2": 1.0})
-    assert person_count(r) == 1
-
-
-def test_older_manifests_without_furl_count_every_seen_tip():
-    r = row({"1": [1, 2], "2": [3, 4]}, {"1": 0.5, "2": 0.5})
-    assert person_count(r) == 2
+def test_older_manifests_without_furl_count_every_leaf_as_open():
+    r = row({"1": [1, 2], "2": [30, 4]}, {"1": 0.5, "2": 0.5})
+    assert person_count(r) == open_count(r) == 2
 
 
 def test_visible_rule_keeps_every_tip_unless_a_gap_is_given():
-    r = row({"1": [1, 2], "2": [3, 4]}, {"1": 0.5, "2": 30.0}, {"1": 1.0, "2": 1.0})
+    r = row({"1": [1, 2], "2": [30, 4]}, {"1": 0.5, "2": 30.0})
     assert sorted(tip_targets(r, "visible", None)) == ["1", "2"]
     assert sorted(tip_targets(r, "visible", 12.0)) == ["1"]
     assert sorted(tip_targets(r, "person", None)) == ["1"]
