@@ -10,14 +10,17 @@
 # Usage (from the repository root):
 #   scripts/tip-schedule.sh render          # training and calibration sets into $DATA (skips those present)
 #   scripts/tip-schedule.sh train MINUTES   # resume, train for MINUTES of wall clock, pause, pack the resume point
-#   scripts/tip-schedule.sh score [STEP...] # count kept checkpoints on calib-s700001 with phyllo eval, one row each
+#   scripts/tip-schedule.sh score [STEP|MODEL.onnx ...]  # count kept checkpoints (or ONNX files) on
+#                                           # calib-s700001 (SET) with phyllo eval: rows per count rule and truth
 # Environment: DATA [/work/data], RUN [models/runs/tips-t1], STEPS (the schedule's
-# length; fixed once started).
+# length; fixed once started), DEVICE [cpu; cuda on a lent GPU: render, then
+# `DEVICE=cuda PYTHON=python3 scripts/tip-schedule.sh train 7`, and bring back
+# models/schedule/tips-t1.pt through $OUT].
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 data=${DATA:-/work/data}
 run=${RUN:-$root/models/runs/tips-t1}
-py=$root/models/.venv/bin/python
+py=${PYTHON:-$root/models/.venv/bin/python}
 gen=$root/target/release/phyllo-gen
 phyllo=$root/target/release/phyllo
 resume=$root/models/schedule/tips-t1.pt
@@ -47,10 +50,14 @@ train() {
   if [ ! -f "$run/last.pt" ] && [ -f "$resume" ]; then
     (cd "$root/models" && "$py" -m phyllo_train.resume_state unpack "$resume" --out "$run/last.pt")
   fi
+  # A step is 8 crops: two processes of 4 on this CPU, or one batch of 8 on a lent GPU
+  # (DEVICE=cuda; its loaders on the device machine's cores).
+  local hw=(--procs 2 --batch 4 --threads 1 --workers 0)
+  [ "${DEVICE:-cpu}" = cuda ] && hw=(--device cuda --batch 8 --workers "${WORKERS:-14}" --preload)
   (cd "$root/models" && "$py" -m phyllo_train.train \
     --data "$data/train-t1a" --data "$data/train-t1b" --out "$run" \
     --encoder efficientnet-lite0 --pretrained --encoder-lr-scale 0.25 --lr 1e-3 --warmup 500 \
-    --steps "$steps" --crop 384 --batch 4 --procs 2 --threads 1 --workers 0 --photometric device \
+    --steps "$steps" --crop 384 "${hw[@]}" --photometric device \
     --tips --tip-rule person --center-sigma-min 2 --scale 0.6,1.7 \
     --val-limit 0 --ckpt-every 100 --keep-every 1000 --log-every 20 --seed 58 --stop-after "$minutes")
   (cd "$root/models" && "$py" -m phyllo_train.resume_state pack "$run/last.pt" --out "$resume")
@@ -60,21 +67,32 @@ score() {
   cargo build -q --release -p phyllo --manifest-path "$root/Cargo.toml"
   local cks=()
   if [ $# -gt 0 ]; then
-    for s in "$@"; do cks+=("$(printf '%s/step-%06d.pt' "$run" "$s")"); done
+    for s in "$@"; do
+      case $s in *.onnx) cks+=("$s") ;; *) cks+=("$(printf '%s/step-%06d.pt' "$run" "$s")") ;; esac
+    done
   else
     cks=("$run"/step-*.pt)
   fi
   mkdir -p "$run/scored"
-  echo "| checkpoint | rule | images | exact | within ±1 | RMSE | MAE | bias | R² |"
-  echo "|---|---|---:|---:|---:|---:|---:|---:|---:|"
+  local set=${SET:-calib-s700001}
+  # One row per checkpoint, count rule and truth: every visible leaf (the contract's truth, as
+  # phyllo eval scores) and the tips a person would click (phyllo_train.tip_truth).
+  echo "| checkpoint | count rule | truth | images | exact | within ±1 | RMSE | MAE | bias |"
+  echo "|---|---|---|---:|---:|---:|---:|---:|---:|"
   for ck in "${cks[@]}"; do
     [ -e "$ck" ] || continue
     name=tips-t1-$(basename "$ck" .pt)
     onnx=$run/scored/$name.onnx
+    case $ck in *.onnx) name=$(basename "$ck" .onnx); onnx=$ck ;; esac
     [ -e "$onnx" ] || (cd "$root/models" && "$py" -m phyllo_train.export --checkpoint "$ck" --out "$onnx" --name "$name" >/dev/null)
-    for rule in tips split centres; do
-      "$phyllo" eval --threads "${THREADS:-2}" --model "$onnx" --dataset "$data/calib-s700001" --split all \
-        --count-rule "$rule" --json 2>/dev/null | "$root/scripts/eval_json.py" row "$name | $rule"
+    for rule in ${RULES:-tips split centres}; do
+      per=$run/scored/$name-$set-$rule.txt
+      [ -s "$per" ] || "$phyllo" eval --threads "${THREADS:-2}" --model "$onnx" --dataset "$data/$set" --split all \
+        --count-rule "$rule" --per-image >"$per" 2>/dev/null
+      (cd "$root/models" && "$py" -m phyllo_train.truth_rules --dataset "$data/$set" "$per" --person) |
+        awk -F'|' -v ck="$name" -v rule="$rule" '/^\| (every visible leaf|tips a person)/ {
+          sub(/ \(phyllo_train.tip_truth\)/, "", $2);
+          printf "| %s | %s |%s|%s|%s|%s|%s|%s|%s|\n", ck, rule, $2, $3, $4, $5, $6, $7, $8 }'
     done
   done
 }

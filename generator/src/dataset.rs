@@ -374,7 +374,11 @@ mod tests {
         let furl = leaf_furl(&plant, &visible);
         assert_eq!(furl.keys().copied().collect::<Vec<_>>(), vec![2, n]);
         assert_eq!(furl[&2], 0.0, "a low leaf is open");
-        assert!(furl[&n] > 0.5, "the youngest leaf is still in the whorl: {}", furl[&n]);
+        assert!(
+            furl[&n] > 0.5,
+            "the youngest leaf is still in the whorl: {}",
+            furl[&n]
+        );
         assert!(furl.values().all(|f| (0.0..=1.0).contains(f)));
     }
 }
