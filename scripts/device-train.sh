@@ -7,6 +7,11 @@
 # $OUT, to be scored here (scripts/compare-models.sh on the calibration sets,
 # then scripts/model-metrics.sh). Nothing here is needed for CI.
 #
+# The tip network's schedule (issue 58) does not start afresh here: a lent GPU
+# goes on with it through scripts/tip-schedule.sh (render its sets, then
+# `DEVICE=cuda PYTHON=python3 scripts/tip-schedule.sh train MINUTES` with
+# models/schedule/tips-t1.pt in the tree, and copy the repacked file to $OUT).
+#
 # Prepare on this machine with scripts/device-prepare.sh [INIT_ONNX]: it does
 # what follows, proves it with a toy run of this script on the CPU, and prints
 # the device call. By hand, from the repository root:
