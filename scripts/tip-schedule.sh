@@ -12,7 +12,7 @@
 #   scripts/tip-schedule.sh train MINUTES   # resume, train for MINUTES of wall clock, pause, pack the resume point
 #   scripts/tip-schedule.sh score [STEP|MODEL.onnx ...]  # count kept checkpoints (or ONNX files) on
 #                                           # calib-s700001 (SET) with phyllo eval: rows per count rule and truth
-# Environment: DATA [/work/data], RUN [models/runs/tips-t1], STEPS (the schedule's
+# Environment: DATA [/work/data], RUN [models/runs/tips-t1], EXTRA (score: phyllo eval options), STEPS [6000] (the schedule's
 # length; fixed once started), DEVICE [cpu; cuda on a lent GPU: render, then
 # `DEVICE=cuda PYTHON=python3 scripts/tip-schedule.sh train 7`, and bring back
 # models/schedule/tips-t1.pt through $OUT].
@@ -24,7 +24,7 @@ py=${PYTHON:-$root/models/.venv/bin/python}
 gen=$root/target/release/phyllo-gen
 phyllo=$root/target/release/phyllo
 resume=$root/models/schedule/tips-t1.pt
-steps=${STEPS:-12000}
+steps=${STEPS:-6000}
 presets=btx623,pawaga,rtx430,sc301,tx3197,maize:1.7,maize-whorl:1
 
 render() {
@@ -75,6 +75,9 @@ score() {
   fi
   mkdir -p "$run/scored"
   local set=${SET:-calib-s700001}
+  # EXTRA (phyllo eval options, e.g. "--tip-threshold 0.2 --tip-reach 4") names its own files.
+  local tag
+  tag=$(printf '%s' "${EXTRA:-}" | tr -s ' -' '_' | sed 's/^_//')
   # One row per checkpoint, count rule and truth: every visible leaf (the contract's truth, as
   # phyllo eval scores) and the tips a person would click (phyllo_train.tip_truth).
   echo "| checkpoint | count rule | truth | images | exact | within ±1 | RMSE | MAE | bias |"
@@ -86,11 +89,12 @@ score() {
     case $ck in *.onnx) name=$(basename "$ck" .onnx); onnx=$ck ;; esac
     [ -e "$onnx" ] || (cd "$root/models" && "$py" -m phyllo_train.export --checkpoint "$ck" --out "$onnx" --name "$name" >/dev/null)
     for rule in ${RULES:-tips split centres}; do
-      per=$run/scored/$name-$set-$rule.txt
+      per=$run/scored/$name-$set-$rule${tag:+-$tag}.txt
+      # shellcheck disable=SC2086 # EXTRA is a list of phyllo eval options
       [ -s "$per" ] || "$phyllo" eval --threads "${THREADS:-2}" --model "$onnx" --dataset "$data/$set" --split all \
-        --count-rule "$rule" --per-image >"$per" 2>/dev/null
+        --count-rule "$rule" ${EXTRA:-} --per-image >"$per" 2>/dev/null
       (cd "$root/models" && "$py" -m phyllo_train.truth_rules --dataset "$data/$set" "$per" --person) |
-        awk -F'|' -v ck="$name" -v rule="$rule" '/^\| (every visible leaf|tips a person)/ {
+        awk -F'|' -v ck="$name" -v rule="$rule${EXTRA:+ $EXTRA}" '/^\| (every visible leaf|tips a person)/ {
           sub(/ \(phyllo_train.tip_truth\)/, "", $2);
           printf "| %s | %s |%s|%s|%s|%s|%s|%s|%s|\n", ck, rule, $2, $3, $4, $5, $6, $7, $8 }'
     done
