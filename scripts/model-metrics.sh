@@ -14,6 +14,10 @@
 #   (the shipped pair); `none` counts them with MODEL too.
 # Real data: $PHYLLO_DEV_DATA, default ../shared/data/unl-maize-dev.
 # CALIB_ROOT: default /work/data; CALIB_SETS="" leaves the calibration rows out.
+# EXTRA: more phyllo eval arguments for every row (e.g. the settings before a
+#   change: EXTRA="--zoom-height-measure all --zoom-height 480").
+# The real rows come whole and split by experiment (81-* 2018, zoomed in;
+#   402-* 2019), each with 95 % intervals; they are reported, never chosen by.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 model=${1:-$root/models/phyllo.onnx}
@@ -31,10 +35,13 @@ row() { # label, key in models/eval-sets.tsv, then phyllo eval arguments
   local label=$1 key=$2
   shift 2
   local out got want check
-  out=$("$bin" eval --threads "${THREADS:-2}" --model "$model" --top-model "$top" --json "$@" 2>/dev/null)
+  # shellcheck disable=SC2086 # EXTRA is a list of arguments
+  out=$("$bin" eval --threads "${THREADS:-2}" --model "$model" --top-model "$top" --json ${EXTRA:-} "$@" 2>/dev/null)
   got=$("$eval_json" field fingerprint <<<"$out")
   want=$(awk -F'\t' -v k="$key" '$1 == k {print $2; exit}' "$sets")
-  if [ "$got" = "$want" ]; then check="$got (as recorded)"; else check="$got (DIFFERS from ${want:-nothing recorded}: not comparable with models/MODEL.md)"; fi
+  if [ "$key" = - ]; then check="$got (part of the row above)"
+  elif [ "$got" = "$want" ]; then check="$got (as recorded)"
+  else check="$got (DIFFERS from ${want:-nothing recorded}: not comparable with models/MODEL.md)"; fi
   model_id=$("$eval_json" field model <<<"$out")
   rows+=("$("$eval_json" row "$label" "$check" <<<"$out")")
   intervals+=("$("$eval_json" intervals "$label" <<<"$out")")
@@ -50,8 +57,17 @@ row() { # label, key in models/eval-sets.tsv, then phyllo eval arguments
 test_split=val
 if grep -q "^$(basename "$test")/all"$'\t' "$sets"; then test_split=all; fi
 row "synthetic frames, $(basename "$test")" "$(basename "$test")/$test_split" --dataset "$test" --split $test_split --per-image
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+for csv in leaf_tips crops_counts; do
+  for exp in 81 402; do
+    { head -1 "$dev/$csv.csv"; grep "^$exp-" "$dev/$csv.csv" || true; } >"$tmp/$csv-$exp.csv"
+  done
+done
 row "real full frames" real-frames --counts "$dev/leaf_tips.csv" --images "$dev/images"
+for exp in 81 402; do row "  frames $exp-*" - --counts "$tmp/leaf_tips-$exp.csv" --images "$dev/images"; done
 row "real crops" real-crops --counts "$dev/crops_counts.csv" --images "$dev/crops"
+for exp in 81 402; do row "  crops $exp-*" - --counts "$tmp/crops_counts-$exp.csv" --images "$dev/crops"; done
 for set in ${CALIB_SETS-calib-s700001 calib-s700003-late whorl-s700005}; do
   if [ -e "${CALIB_ROOT:-/work/data}/$set/manifest.jsonl" ]; then
     row "$set (calibration only)" "$set/all" --dataset "${CALIB_ROOT:-/work/data}/$set" --split all

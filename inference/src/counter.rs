@@ -24,7 +24,7 @@ use crate::stitch::{stitch, TileOutputs};
 use crate::tiling::{batch_tensor, prepare, Canvas};
 use crate::tips::CountRule;
 use crate::top_view::TopViewConfig;
-use crate::zoom::{instances_height, Zoom};
+use crate::zoom::{instances_height, plant_height, HeightMeasure, Zoom};
 
 /// Slack around the plant's box, in model pixels, within which instance
 /// centres are still taken as plant.
@@ -66,6 +66,8 @@ pub struct CounterConfig {
     /// Largest enlargement of a small plant; `None` takes the contract's
     /// `max_zoom`.
     pub max_zoom: Option<f32>,
+    /// Which of the first pass's instances the small-plant rule measures.
+    pub zoom_height_measure: HeightMeasure,
     /// Also run every tile mirrored and average the two (twice the model
     /// time).
     pub flip: bool,
@@ -91,6 +93,7 @@ impl Default for CounterConfig {
             camera_zoom_rules: Vec::new(),
             zoom_plant_height: None,
             max_zoom: None,
+            zoom_height_measure: HeightMeasure::default(),
             flip: false,
             postprocess: PostprocessParams::default(),
             top_views: TopViewConfig::default(),
@@ -320,7 +323,7 @@ impl Counter {
         // A fixed region bounds the chamber, not the plant; only an
         // automatic one may be zoomed into.
         if self.config.region == RegionMode::Auto {
-            let z = instances_height(&pan, c.outputs.stride).map_or(1.0, |h| zoom.factor(h));
+            let z = self.plant_height(&pan, &canvas).map_or(1.0, |h| zoom.factor(h));
             if z > 1.0 {
                 (canvas, pan) = self.pass(net, img, Some(canvas.scale * z), &mut timings)?;
                 tiles += canvas.tiles.len() as u32;
@@ -341,6 +344,21 @@ impl Counter {
             panoptic: pan,
             canvas,
         })
+    }
+
+    /// The first pass's plant height for the small-plant rule, in model
+    /// pixels, by the configured [`HeightMeasure`].
+    fn plant_height(&self, pan: &Panoptic, canvas: &Canvas) -> Option<u32> {
+        let stride = self.contract.outputs.stride;
+        match self.config.zoom_height_measure {
+            HeightMeasure::All => instances_height(pan, stride),
+            HeightMeasure::Plant => {
+                let mut body = pan.clone();
+                self.tidy(&mut body, canvas);
+                let p = &self.config.postprocess;
+                plant_height(&body, stride, p.split_min_area, p.speck_distance)
+            }
+        }
     }
 
     /// Takes from the leaves what is not theirs without changing the count:

@@ -6,8 +6,16 @@
 //! than by colour: in the chamber, dark posts and jambs pass the colour test
 //! and make a seedling's colour box many times its size. Training measures
 //! the same height on the label (`phyllo_train/augment.py`).
+//!
+//! The label has no specks, while the first pass may: a few pixels on the
+//! chamber's frame far above a seedling make it look tall enough to be left
+//! unenlarged. [`HeightMeasure::Plant`] measures without them.
+
+use std::fmt;
+use std::str::FromStr;
 
 use phyllo_contract::Contract;
+use serde::{Deserialize, Serialize};
 
 use crate::panoptic::Panoptic;
 
@@ -59,12 +67,90 @@ impl Zoom {
     }
 }
 
+/// Which instances the small-plant rule measures the plant's height on.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum HeightMeasure {
+    /// Every instance the first pass kept, specks included. The default:
+    /// the plant measure counts the synthetic calibration sets better but
+    /// raises the real over-count (models/EXPERIMENTS.md).
+    #[default]
+    All,
+    /// The plant's body: the first pass tidied of specks (far crumbs of a
+    /// leaf, pixels outside the plant's box), then without small instances
+    /// lying far from every large one ([`plant_height`]).
+    Plant,
+}
+
+impl HeightMeasure {
+    /// Every measure, in the order the CLI lists them.
+    pub const ALL: [HeightMeasure; 2] = [HeightMeasure::All, HeightMeasure::Plant];
+
+    /// The measure's name, as written on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            HeightMeasure::All => "all",
+            HeightMeasure::Plant => "plant",
+        }
+    }
+}
+
+impl fmt::Display for HeightMeasure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for HeightMeasure {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        HeightMeasure::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| format!("unknown height measure {s:?} (expected all or plant)"))
+    }
+}
+
 /// Height in model pixels of the box around `pan`'s instances (the rows
 /// they span, plus [`BOX_MARGIN`] above and below), or `None` without any.
 pub fn instances_height(pan: &Panoptic, stride: u32) -> Option<u32> {
     let y0 = pan.segments.iter().map(|s| s.bbox[1]).min()?;
     let y1 = pan.segments.iter().map(|s| s.bbox[3]).max()?;
     Some((y1 - y0) * stride + 2 * BOX_MARGIN)
+}
+
+/// Like [`instances_height`], over the plant's body only: instances of at
+/// least `min_area` output pixels, and smaller ones whose box lies within
+/// `distance` output pixels (Chebyshev, box to box) of a large one's. A
+/// small instance far from every large one is a speck on the chamber, not a
+/// leaf of the plant. Without any large instance, every instance counts, so a
+/// seedling of small leaves is still measured.
+pub fn plant_height(pan: &Panoptic, stride: u32, min_area: u32, distance: u32) -> Option<u32> {
+    let large: Vec<[u32; 4]> = pan
+        .segments
+        .iter()
+        .filter(|s| s.area >= min_area)
+        .map(|s| s.bbox)
+        .collect();
+    let near = |b: [u32; 4]| large.iter().any(|&l| box_gap(b, l) <= distance);
+    let kept: Vec<[u32; 4]> = pan
+        .segments
+        .iter()
+        .map(|s| s.bbox)
+        .filter(|&b| large.is_empty() || near(b))
+        .collect();
+    let y0 = kept.iter().map(|b| b[1]).min()?;
+    let y1 = kept.iter().map(|b| b[3]).max()?;
+    Some((y1 - y0) * stride + 2 * BOX_MARGIN)
+}
+
+/// Chebyshev gap between two `[x0, y0, x1, y1]` boxes (0 where they touch or
+/// overlap).
+fn box_gap(a: [u32; 4], b: [u32; 4]) -> u32 {
+    let dx = a[0].saturating_sub(b[2]).max(b[0].saturating_sub(a[2]));
+    let dy = a[1].saturating_sub(b[3]).max(b[1].saturating_sub(a[3]));
+    dx.max(dy)
 }
 
 #[cfg(test)]
@@ -107,5 +193,74 @@ mod tests {
         assert_eq!(instances_height(&pan, 2), Some(40 * 2 + 24));
         pan.segments.clear();
         assert_eq!(instances_height(&pan, 2), None);
+    }
+
+    fn segment(area: u32, bbox: [u32; 4]) -> crate::panoptic::Segment {
+        crate::panoptic::Segment {
+            id: 1,
+            class: 1,
+            area,
+            bbox,
+            centre: [0.0, 0.0],
+            score: 1.0,
+        }
+    }
+
+    fn panoptic(segments: Vec<crate::panoptic::Segment>) -> Panoptic {
+        Panoptic {
+            height: 200,
+            width: 200,
+            semantic: vec![0; 40_000],
+            instance: vec![0; 40_000],
+            segments,
+            tips: None,
+        }
+    }
+
+    #[test]
+    fn a_small_instance_far_from_the_plant_leaves_its_height_alone() {
+        // A seedling (rows 150..190) and a speck on the chamber's frame at rows 10..12.
+        let pan = panoptic(vec![
+            segment(300, [90, 150, 110, 190]),
+            segment(200, [100, 160, 130, 180]),
+            segment(4, [20, 10, 22, 12]),
+        ]);
+        assert_eq!(
+            instances_height(&pan, 2),
+            Some(180 * 2 + 24),
+            "the speck stretches every instance's box"
+        );
+        assert_eq!(plant_height(&pan, 2, 20, 24), Some(40 * 2 + 24));
+    }
+
+    #[test]
+    fn a_small_leaf_beside_the_plant_is_measured() {
+        // A young leaf of 10 pixels just above the large ones is the plant's.
+        let pan = panoptic(vec![
+            segment(300, [90, 150, 110, 190]),
+            segment(10, [95, 130, 99, 140]),
+        ]);
+        assert_eq!(plant_height(&pan, 2, 20, 24), Some(60 * 2 + 24));
+    }
+
+    #[test]
+    fn a_plant_of_small_leaves_only_is_measured_whole() {
+        let pan = panoptic(vec![
+            segment(10, [90, 150, 95, 160]),
+            segment(12, [90, 100, 95, 110]),
+        ]);
+        assert_eq!(plant_height(&pan, 2, 20, 24), instances_height(&pan, 2));
+        assert_eq!(plant_height(&panoptic(Vec::new()), 2, 20, 24), None);
+    }
+
+    #[test]
+    fn height_measures_read_and_print_their_names() {
+        for m in HeightMeasure::ALL {
+            assert_eq!(m.name().parse::<HeightMeasure>(), Ok(m));
+        }
+        assert!("specks"
+            .parse::<HeightMeasure>()
+            .unwrap_err()
+            .contains("all or plant"));
     }
 }

@@ -8,6 +8,7 @@ use phyllo_inference::postprocess::{PostprocessParams, DEFAULT_ATTACH_RADIUS};
 use phyllo_inference::region::RegionMode;
 use phyllo_inference::tips::{CountRule, DEFAULT_TIP_REACH};
 use phyllo_inference::top_view::{TopModel, TopViewConfig};
+use phyllo_inference::zoom::HeightMeasure;
 use phyllo_inference::CounterConfig;
 
 /// Model and runtime options.
@@ -57,6 +58,16 @@ pub struct CounterArgs {
     /// Largest enlargement of a small plant (default: the contract's).
     #[arg(long, value_name = "FACTOR", value_parser = parse_max_zoom)]
     pub max_zoom: Option<f32>,
+    /// What the small-plant rule measures the plant's height on: `all` the
+    /// instances of the first pass, or the `plant` without specks on the
+    /// chamber.
+    #[arg(
+        long,
+        value_name = "MEASURE",
+        default_value_t = HeightMeasure::default(),
+        value_parser = parse_height_measure(),
+    )]
+    pub zoom_height_measure: HeightMeasure,
     /// Also run every tile mirrored left to right and average the two.
     #[arg(long)]
     pub flip: bool,
@@ -146,6 +157,7 @@ impl CounterArgs {
             camera_zoom: self.camera_zoom,
             zoom_plant_height: self.zoom_height,
             max_zoom: self.max_zoom,
+            zoom_height_measure: self.zoom_height_measure,
             flip: self.flip,
             postprocess,
             top_views: TopViewConfig {
@@ -164,6 +176,13 @@ fn parse_count_rule() -> impl clap::builder::TypedValueParser<Value = CountRule>
     use clap::builder::TypedValueParser;
     clap::builder::PossibleValuesParser::new(CountRule::ALL.map(CountRule::name))
         .map(|s| s.parse::<CountRule>().expect("a listed rule"))
+}
+
+/// Parses a `--zoom-height-measure`, listing the measures in `--help`.
+fn parse_height_measure() -> impl clap::builder::TypedValueParser<Value = HeightMeasure> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(HeightMeasure::ALL.map(HeightMeasure::name))
+        .map(|s| s.parse::<HeightMeasure>().expect("a listed measure"))
 }
 
 /// Parses a `--max-zoom`: 1..=8, the contract's bounds.
@@ -298,6 +317,15 @@ mod tests {
         for bad in ["0.5", "9", "NaN", "two"] {
             assert!(config(&["--max-zoom", bad]).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn the_zoom_height_measure_is_chosen_by_name() {
+        use phyllo_inference::zoom::HeightMeasure;
+        assert_eq!(config(&[]).unwrap().zoom_height_measure, HeightMeasure::default());
+        let plant = config(&["--zoom-height-measure", "plant"]).unwrap();
+        assert_eq!(plant.zoom_height_measure, HeightMeasure::Plant);
+        assert!(config(&["--zoom-height-measure", "specks"]).is_err());
     }
 
     #[test]

@@ -100,6 +100,7 @@ fn counting_settings(config: &phyllo_inference::CounterConfig) -> serde_json::Va
     let mut settings = serde_json::json!({
         "zoom_plant_height": config.zoom_plant_height.unwrap_or(zoom.plant_height),
         "max_zoom": config.max_zoom.unwrap_or(zoom.max),
+        "zoom_height_measure": config.zoom_height_measure,
         "flip": config.flip,
         "region": config.region,
         "scale": config.scale,
