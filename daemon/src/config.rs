@@ -63,6 +63,10 @@ pub struct ImportConfig {
     pub dir: Option<PathBuf>,
 }
 
+/// Most worker or ONNX Runtime threads a configuration may ask for: far
+/// above any imaging station's cores, far below what exhausts memory.
+const MAX_THREADS: u64 = 256;
+
 /// `[watch]`: intake from the drop directory.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -310,9 +314,10 @@ impl Config {
         if !(-10.0..=40.0).contains(&self.timeline.base_temp_c) {
             bail!("timeline.base_temp_c must be a base temperature in °C, between -10 and 40");
         }
-        if self.timeline.session_gap_minutes <= 0.0 {
-            bail!("timeline.session_gap_minutes must be positive");
+        if !(self.timeline.session_gap_minutes > 0.0 && self.timeline.session_gap_minutes.is_finite()) {
+            bail!("timeline.session_gap_minutes must be a positive number of minutes");
         }
+        self.check_ranges()?;
         if !(self.watch.quiet_hours >= 0.0 && self.watch.quiet_hours.is_finite()) {
             bail!("watch.quiet_hours must be 0 (no warning) or a positive number of hours");
         }
@@ -323,6 +328,47 @@ impl Config {
         crate::domain::climate_zone::ZoneRules::from_config(&self.timeline.zones)?;
         crate::domain::names::NamePatterns::from_config(&self.names)?;
         crate::domain::groups::GroupRule::from_config(&self.groups)?;
+        Ok(())
+    }
+
+    /// Paths that must name something and numbers that must lie in a range a
+    /// station can use: refused here, at load, before the database is opened,
+    /// rather than as a panic or a flood of errors later.
+    fn check_ranges(&self) -> anyhow::Result<()> {
+        for (key, path) in [("drop_dir", &self.drop_dir), ("database", &self.database)] {
+            if path.as_os_str().is_empty() {
+                bail!("{key} must name a path, not be empty");
+            }
+        }
+        let w = &self.watch;
+        if !(w.stable_secs >= 0.0 && w.stable_secs <= 86_400.0) {
+            bail!(
+                "watch.stable_secs must be a number of seconds from 0 to 86400, not {}",
+                w.stable_secs
+            );
+        }
+        let i = &self.inference;
+        let whole = [
+            ("watch.settle_ms", w.settle_ms, 0, 3_600_000),
+            ("watch.poll_ms", w.poll_ms, 1, 60_000),
+            ("watch.rescan_secs", w.rescan_secs, 0, 7 * 86_400),
+            ("inference.workers", i.workers as u64, 1, MAX_THREADS),
+            ("inference.intra_threads", i.intra_threads as u64, 0, MAX_THREADS),
+            ("inference.batch_size", i.batch_size as u64, 1, 64),
+            ("inference.queue_capacity", i.queue_capacity as u64, 1, 100_000),
+            ("inference.max_attempts", u64::from(i.max_attempts), 1, 100),
+            (
+                "inference.zoom_plant_height",
+                u64::from(i.zoom_plant_height.unwrap_or(0)),
+                0,
+                8192,
+            ),
+        ];
+        for (key, value, lo, hi) in whole {
+            if !(lo..=hi).contains(&value) {
+                bail!("{key} must lie in {lo}..={hi}, not {value}");
+            }
+        }
         Ok(())
     }
 
@@ -464,6 +510,16 @@ mod tests {
             "[timeline]\ndeath_penalty = -1",
             "[timeline]\ndeath_penalty = nan",
             "[inference]\nworkers = 0",
+            "[inference]\nworkers = 1000000",
+            "[inference]\nintra_threads = 1000000",
+            "[inference]\nbatch_size = 0",
+            "[inference]\nmax_attempts = 0",
+            "[watch]\nstable_secs = -1.0",
+            "[watch]\nstable_secs = nan",
+            "[watch]\nstable_secs = inf",
+            "[watch]\npoll_ms = 0",
+            "[timeline]\nsession_gap_minutes = nan",
+            "[timeline]\nsession_gap_minutes = 0",
             "[feed]\nkeep_days = -1",
             "[groups]\npattern = \"^(?P<genotype>.+)$\"\nby = [\"treatment\"]",
             "[[names.patterns]]\nname = \"x\"\nregex = \"(?P<plant>.*)\"",
@@ -478,6 +534,29 @@ mod tests {
             let text = format!("drop_dir = \"/d\"\ndatabase = \"/db\"\n{bad}\n");
             assert!(Config::parse(&text).is_err(), "accepted: {bad}");
         }
+    }
+
+    #[test]
+    fn empty_paths_and_out_of_range_numbers_are_named_in_the_error() {
+        let err = Config::parse("drop_dir = \"\"\ndatabase = \"/db\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("drop_dir must name a path"), "{err}");
+        let err = Config::parse("drop_dir = \"/d\"\ndatabase = \"\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("database must name a path"), "{err}");
+        let text = "drop_dir = \"/d\"\ndatabase = \"/db\"\n[inference]\nworkers = 1000000\n";
+        let err = Config::parse(text).unwrap_err().to_string();
+        assert!(
+            err.contains("inference.workers must lie in 1..=256, not 1000000"),
+            "{err}"
+        );
+        let text = "drop_dir = \"/d\"\ndatabase = \"/db\"\n[watch]\nstable_secs = -1.0\n";
+        let err = Config::parse(text).unwrap_err().to_string();
+        assert!(err.contains("watch.stable_secs"), "{err}");
+        // The limits leave every shipped default and sample configuration valid.
+        assert!(Config::parse("drop_dir = \"/d\"\ndatabase = \"/db\"\n").is_ok());
     }
 
     #[test]
