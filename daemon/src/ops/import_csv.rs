@@ -147,9 +147,24 @@ pub fn read_moves(path: &std::path::Path) -> anyhow::Result<Vec<(String, String)
                 path.display()
             );
         }
+        check_text(path, line, "plant id", plant)?;
         out.push((image.to_string(), plant.to_string()));
     }
     Ok(out)
+}
+
+/// Refuses a cell with control characters (a quoted newline or ESC would
+/// forge a line in `tail`, the logs and the exports) or the `\x` that marks
+/// an escaped byte, as file names are refused ([`crate::domain::names`]).
+fn check_text(path: &std::path::Path, line: usize, what: &str, text: &str) -> anyhow::Result<()> {
+    if text.chars().any(char::is_control) || text.contains("\\x") {
+        bail!(
+            "{}:{line}: {what} {} has control characters",
+            path.display(),
+            crate::domain::names::printable(text)
+        );
+    }
+    Ok(())
 }
 
 /// Opens an import CSV (fields trimmed) and reads its header row.
@@ -191,6 +206,7 @@ pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Sheet> {
         if plant.is_empty() {
             bail!("{}:{line}: empty plant", path.display());
         }
+        check_text(path, line, "plant id", &plant)?;
         let ts = field(ct);
         let taken_at =
             parse_timestamp(&ts).with_context(|| format!("{}:{line}: timestamp '{ts}'", path.display()))?;
@@ -198,6 +214,7 @@ pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Sheet> {
         if view.is_empty() {
             bail!("{}:{line}: empty view", path.display());
         }
+        check_text(path, line, "view", &view)?;
         let count = field(cc);
         if count.is_empty() {
             // A review sheet's session nobody counted.
@@ -308,6 +325,34 @@ mod tests {
         let err = format!("{:#}", read_rows(&p).unwrap_err());
         assert!(
             err.contains("obs.csv:2") && err.contains("not a plausible leaf count"),
+            "{err}"
+        );
+    }
+
+    /// Issue 57, item 8: a quoted cell with a newline or ESC must not reach
+    /// the live feed as a forged line or a raw escape.
+    #[test]
+    fn control_characters_in_imported_ids_are_refused_and_shown_escaped() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("obs.csv");
+        let sheets = [
+            "plant,timestamp,view,leaf_count\nP1,2018-04-20,SV_108,9\n\"EVIL\nforged\",2018-04-20,SV_108,9\n",
+            "plant,timestamp,view,leaf_count\n\"P\u{1b}[31mRED\",2018-04-20,SV_108,9\n",
+            "plant,timestamp,view,leaf_count\nP1,2018-04-20,\"SV\n108\",9\n",
+        ];
+        for sheet in sheets {
+            std::fs::write(&p, sheet).unwrap();
+            let err = format!("{:#}", read_rows(&p).unwrap_err());
+            assert!(err.contains("control characters"), "{err}");
+            assert!(
+                !err.chars().any(char::is_control),
+                "the message itself is escaped: {err:?}"
+            );
+        }
+        std::fs::write(&p, "image,plant\nimg.png,\"EVIL\nforged\"\n").unwrap();
+        let err = format!("{:#}", read_moves(&p).unwrap_err());
+        assert!(
+            err.contains("obs.csv:2") && err.contains("control characters"),
             "{err}"
         );
     }
