@@ -1114,3 +1114,33 @@ fn timelines_plot_against_degree_days() {
     ]);
     assert_eq!(std::fs::read_dir(&plots).unwrap().count(), 6);
 }
+
+/// Issue 57, item 5: an imported row dated decades away is refused as a file
+/// name with that date would be, naming the sheet and the plant, before
+/// anything is stored.
+#[test]
+fn imported_capture_times_outside_the_plausible_window_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (cfg, _) = site_config(d, "");
+    for (when, says) in [
+        ("2091-04-20T10:00:00", "ahead of this computer's clock"),
+        ("1919-04-20", "earliest"),
+    ] {
+        let obs = d.join("obs.csv");
+        let sheet =
+            format!("plant,timestamp,view,leaf_count\nP1,2018-04-20T10:00:00,SV_0,5\nP1,{when},SV_0,6\n");
+        std::fs::write(&obs, sheet).unwrap();
+        let out = phyllo(&["import", "-c", &cfg, obs.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "accepted {when}");
+        assert!(
+            err.contains("obs.csv, plant P1") && err.contains(says),
+            "{when}: {err}"
+        );
+    }
+    assert!(
+        !d.join("state/phyllo.sqlite").exists(),
+        "a refused sheet is refused before the database is touched"
+    );
+}

@@ -56,6 +56,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     import_file(&config, &journal, &file)
 }
 
+/// Refuses a sheet with a capture time the drop directory's file names would
+/// be refused for (before `[names] earliest`, or hours ahead of this clock):
+/// one row dated 2091 would give its plant a phyllochron of decades.
+fn check_capture_times(
+    config: &crate::config::Config,
+    file: &std::path::Path,
+    sheet: &crate::ops::import_csv::Sheet,
+) -> anyhow::Result<()> {
+    let names = crate::domain::names::NamePatterns::from_config(&config.names)?;
+    let now = chrono::Local::now().naive_local();
+    for (plant, taken_at, _, _) in &sheet.rows {
+        let shown = format!("{}, plant {plant},", file.display());
+        names.check_time(std::path::Path::new(&shown), *taken_at, now)?;
+    }
+    Ok(())
+}
+
 /// Imports one CSV: checked, kept in the import journal, then stored, with
 /// the journal entry recorded beside its rows.
 pub fn import_file(
@@ -66,6 +83,7 @@ pub fn import_file(
     let (skipped, plants) = match kind(file)? {
         Kind::Counts => {
             let sheet = read_rows(file)?;
+            check_capture_times(config, file, &sheet)?;
             let plants: std::collections::BTreeSet<String> = sheet.rows.into_iter().map(|r| r.0).collect();
             (sheet.skipped, plants)
         }
