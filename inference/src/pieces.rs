@@ -159,7 +159,7 @@ fn pixel_box(pixels: &[usize], w: usize) -> [usize; 4] {
 }
 
 /// Chebyshev gap between two boxes (0 where they touch or overlap).
-fn box_gap(a: [usize; 4], b: [usize; 4]) -> usize {
+pub(crate) fn box_gap(a: [usize; 4], b: [usize; 4]) -> usize {
     let dx = a[0].saturating_sub(b[2]).max(b[0].saturating_sub(a[2]));
     let dy = a[1].saturating_sub(b[3]).max(b[1].saturating_sub(a[3]));
     dx.max(dy)

@@ -18,6 +18,7 @@ use phyllo_contract::Contract;
 use serde::{Deserialize, Serialize};
 
 use crate::panoptic::Panoptic;
+use crate::pieces::box_gap;
 
 /// Margin added above and below the instances' rows, in model pixels (the
 /// same as the colour box's, so the rule reads like a box height).
@@ -115,9 +116,7 @@ impl FromStr for HeightMeasure {
 /// Height in model pixels of the box around `pan`'s instances (the rows
 /// they span, plus [`BOX_MARGIN`] above and below), or `None` without any.
 pub fn instances_height(pan: &Panoptic, stride: u32) -> Option<u32> {
-    let y0 = pan.segments.iter().map(|s| s.bbox[1]).min()?;
-    let y1 = pan.segments.iter().map(|s| s.bbox[3]).max()?;
-    Some((y1 - y0) * stride + 2 * BOX_MARGIN)
+    boxes_height(pan.segments.iter().map(|s| s.bbox), stride)
 }
 
 /// Like [`instances_height`], over the plant's body only: instances of at
@@ -127,30 +126,27 @@ pub fn instances_height(pan: &Panoptic, stride: u32) -> Option<u32> {
 /// leaf of the plant. Without any large instance, every instance counts, so a
 /// seedling of small leaves is still measured.
 pub fn plant_height(pan: &Panoptic, stride: u32, min_area: u32, distance: u32) -> Option<u32> {
-    let large: Vec<[u32; 4]> = pan
+    let wide = |b: [u32; 4]| b.map(|v| v as usize);
+    let large: Vec<[usize; 4]> = pan
         .segments
         .iter()
         .filter(|s| s.area >= min_area)
-        .map(|s| s.bbox)
+        .map(|s| wide(s.bbox))
         .collect();
-    let near = |b: [u32; 4]| large.iter().any(|&l| box_gap(b, l) <= distance);
-    let kept: Vec<[u32; 4]> = pan
+    let near = |b: [u32; 4]| large.iter().any(|&l| box_gap(wide(b), l) <= distance as usize);
+    let kept = pan
         .segments
         .iter()
         .map(|s| s.bbox)
-        .filter(|&b| large.is_empty() || near(b))
-        .collect();
-    let y0 = kept.iter().map(|b| b[1]).min()?;
-    let y1 = kept.iter().map(|b| b[3]).max()?;
-    Some((y1 - y0) * stride + 2 * BOX_MARGIN)
+        .filter(|&b| large.is_empty() || near(b));
+    boxes_height(kept, stride)
 }
 
-/// Chebyshev gap between two `[x0, y0, x1, y1]` boxes (0 where they touch or
-/// overlap).
-fn box_gap(a: [u32; 4], b: [u32; 4]) -> u32 {
-    let dx = a[0].saturating_sub(b[2]).max(b[0].saturating_sub(a[2]));
-    let dy = a[1].saturating_sub(b[3]).max(b[1].saturating_sub(a[3]));
-    dx.max(dy)
+/// Height in model pixels of the rows `boxes` span, plus the margins.
+fn boxes_height(boxes: impl Iterator<Item = [u32; 4]> + Clone, stride: u32) -> Option<u32> {
+    let y0 = boxes.clone().map(|b| b[1]).min()?;
+    let y1 = boxes.map(|b| b[3]).max()?;
+    Some((y1 - y0) * stride + 2 * BOX_MARGIN)
 }
 
 #[cfg(test)]
