@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Import cycles between sibling modules, and the longest functions, per crate.
 
-    scripts/module-graph.py [--crates contract,inference,daemon,generator] [--top 10] [--edges]
+    scripts/module-graph.py [--crates contract,inference,daemon,generator] [--top 10] [--edges] [--check]
 
 For every module directory of every crate it builds the graph among the
 directory's child modules: child A points at child B when code anywhere in
@@ -9,8 +9,10 @@ A's subtree names `crate::…::B`, `super::B` or `self::B` (grouped `use`
 statements included). A child referring back to its own parent is the normal
 Rust shape and is not an edge. Test code (`tests.rs` files and `#[cfg(test)]`
 modules) is left out. It prints each strongly connected component of more
-than one module (an import circle), then the longest functions outside tests.
-Exit status 0 either way: this is a report, not a check.
+than one module (an import circle), then the daemon's imports between its
+layers that docs/ARCHITECTURE.md does not allow, then the longest functions
+outside tests. Exit status 0 unless `--check` (as CI runs it) finds a circle
+or a forbidden layer import.
 """
 
 from __future__ import annotations
@@ -138,7 +140,24 @@ def sccs(nodes: list[str], edges: dict[str, set[str]]) -> list[list[str]]:
     return [c for c in out if len(c) > 1]
 
 
-def crate_cycles(crate: str, show_edges: bool) -> int:
+# The daemon's top-level modules and the ones each may import
+# (docs/ARCHITECTURE.md, "The daemon's layers"): data flows one way, and no
+# layer imports a sibling layer.
+DAEMON_LAYERS = {
+    "cli": {"config", "counting", "domain", "files", "ops", "pipeline", "sinks", "store"},
+    "pipeline": {"config", "counting", "domain", "files", "store"},
+    "ops": {"config", "counting", "domain", "files", "store"},
+    "sinks": {"config", "domain", "files", "store"},
+    "store": {"config", "domain", "files"},
+    "counting": {"config", "store"},
+    "config": {"domain"},
+    "domain": set(),
+    "files": set(),
+}
+
+
+def module_refs(crate: str) -> tuple[dict, dict]:
+    """Every module of `crate` and the modules each refers to (tests aside)."""
     src = ROOT / crate / "src"
     files = sorted(p for p in src.rglob("*.rs") if p.name != "tests.rs")
     modules = {module_path(src, f): f for f in files}
@@ -154,6 +173,29 @@ def crate_cycles(crate: str, show_edges: bool) -> int:
                 target = target[:-1]
             if target and target != mod:
                 refs[mod].add(target)
+    return modules, refs
+
+
+def layer_violations() -> int:
+    """Prints the daemon's imports that cross its layers the wrong way."""
+    modules, refs = module_refs("daemon")
+    found = 0
+    for mod, targets in sorted(refs.items()):
+        if not mod or mod[0] not in DAEMON_LAYERS:
+            continue
+        for t in sorted(targets):
+            if t and t[0] != mod[0] and t[0] in DAEMON_LAYERS and t[0] not in DAEMON_LAYERS[mod[0]]:
+                found += 1
+                print(f"layer import: daemon::{'::'.join(mod)} → {'::'.join(t)}")
+    missing = sorted({m[0] for m in modules if m} - set(DAEMON_LAYERS) - {"lib", "main"})
+    for m in missing:
+        found += 1
+        print(f"layer import: daemon::{m} is in no layer of scripts/module-graph.py")
+    return found
+
+
+def crate_cycles(crate: str, show_edges: bool) -> int:
+    modules, refs = module_refs(crate)
     found = 0
     parents = {m[:-1] for m in modules if m} | {()}
     for parent in sorted(parents):
@@ -217,12 +259,17 @@ def main() -> None:
     ap.add_argument("--crates", default="contract,inference,evaluation,daemon,generator")
     ap.add_argument("--top", type=int, default=10)
     ap.add_argument("--edges", action="store_true", help="print each cycle's edges")
+    ap.add_argument("--check", action="store_true", help="exit 1 on a circle or a forbidden layer import")
     args = ap.parse_args()
     crates = [c for c in args.crates.split(",") if (ROOT / c / "src").is_dir()]
     total = sum(crate_cycles(c, args.edges) for c in crates)
     print(f"{total} import cycle(s) in {', '.join(crates)}")
+    layers = layer_violations() if "daemon" in crates else 0
+    print(f"{layers} forbidden layer import(s) in daemon")
     long_functions(crates, args.top)
     long_files(crates)
+    if args.check and (total or layers):
+        raise SystemExit(1)
 
 
 if __name__ == "__main__":

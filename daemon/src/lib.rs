@@ -16,8 +16,8 @@ pub use phyllo_inference as inference;
 
 pub mod cli;
 pub mod config;
-pub mod disk;
 pub mod domain;
+pub mod files;
 pub mod ops;
 pub mod pipeline;
 pub mod sinks;

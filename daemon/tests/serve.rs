@@ -375,9 +375,8 @@ fn old_feed_entries_are_pruned_and_counts_kept() {
     let two_days_ago = (chrono::Utc::now() - chrono::Duration::days(2))
         .format("%Y-%m-%dT%H:%M:%S%.3fZ")
         .to_string();
-    Store::open(&db, &cfg.timeline, 3)
+    rusqlite::Connection::open(&db)
         .unwrap()
-        .conn()
         .execute("UPDATE feed SET at = ?1", [&two_days_ago])
         .unwrap();
 

@@ -50,7 +50,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let store = Store::open_read_only(&config.database)?;
     let now = chrono::Local::now().naive_local();
-    let (snap, c) = backup::snapshot(store.conn(), &dir, now)?;
+    let (snap, c) = backup::snapshot(&store.snapshot_source(), &dir, now)?;
     println!(
         "snapshot: {} ({:.1} MB; integrity ok; schema {}, {} image versions, {} plants)",
         snap.path.display(),

@@ -10,7 +10,7 @@ use chrono::NaiveDateTime;
 use serde::Serialize;
 
 use super::ConfigArg;
-use crate::domain::climate_zone::{ZoneClocks, ZoneRules};
+use crate::domain::climate_zone::ZoneClocks;
 use crate::store::{parse_iso, PlantTimeline, Store};
 
 /// Arguments of `phyllo forecast`.
@@ -48,10 +48,7 @@ pub struct Due {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
     let store = Store::open_read_only(&config.database)?;
-    let clocks = store.zone_clocks(
-        ZoneRules::from_config(&config.timeline.zones)?,
-        config.timeline.base_temp_c,
-    )?;
+    let clocks = store.zone_clocks(config.rules().timeline.zones.clone(), config.timeline.base_temp_c)?;
     let timelines = match &args.plant {
         Some(p) => match store.plant_timeline(p)? {
             Some(t) => vec![t],

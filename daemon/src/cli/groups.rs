@@ -38,7 +38,7 @@ fn cell(s: Option<Spread>) -> String {
 /// Runs `phyllo groups`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.config.load()?;
-    let Some(rule) = GroupRule::from_config(&config.groups)? else {
+    let Some(rule) = &config.rules().groups else {
         bail!(
             "no [groups] pattern in {}: set one to read genotype, treatment, ... from plant ids (systemd/phyllo.toml.example)",
             args.config.config.display()
@@ -46,13 +46,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let store = Store::open_read_only(&config.database)?;
     let timelines = store.plant_timelines()?;
-    let rep = crate::domain::groups::summarise(&rule, &timelines);
+    let rep = crate::domain::groups::summarise(rule, &timelines);
     let pairs = if args.compare || args.csv.is_some() {
-        crate::domain::group_compare::compare(&rule, &timelines)
+        crate::domain::group_compare::compare(rule, &timelines)
     } else {
         Vec::new()
     };
-    write_files(&args, &rule, &rep, &pairs)?;
+    write_files(&args, rule, &rep, &pairs)?;
     warn_unmatched(&rep);
     if args.json {
         let mut value = serde_json::to_value(&rep)?;
@@ -62,9 +62,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&value)?);
         return Ok(());
     }
-    print_summaries(&rule, &rep);
+    print_summaries(rule, &rep);
     if args.compare {
-        print_pairs(&rule, &pairs);
+        print_pairs(rule, &pairs);
     }
     Ok(())
 }

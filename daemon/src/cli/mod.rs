@@ -88,7 +88,7 @@ impl ConfigArg {
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     let ok = |r: anyhow::Result<()>| r.map(|()| ExitCode::SUCCESS);
     match cli.command {
-        Command::Serve(a) => ok(serve::run(a)),
+        Command::Serve(a) => serve::run(a),
         Command::Import(a) => ok(import::run(a)),
         Command::Recount(a) => recount::run(a),
         Command::Tail(a) => ok(tail::run(a)),

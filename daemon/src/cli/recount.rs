@@ -27,7 +27,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let config = args.config.load()?;
     let _writing = WritersLock::shared(&config.database)?;
     let counter = onnx_counter(&config.inference)?;
-    let mut store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
+    let mut store = Store::open(
+        &config.database,
+        &config.rules().timeline,
+        config.inference.max_attempts,
+    )?;
     let s = recount(
         &mut store,
         counter.as_ref(),

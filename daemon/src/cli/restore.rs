@@ -40,7 +40,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     // Opening the store brings an older snapshot to this schema, whose
     // import records start empty: every journal entry then counts as later.
-    let mut store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
+    let mut store = Store::open(
+        &config.database,
+        &config.rules().timeline,
+        config.inference.max_attempts,
+    )?;
     let later = import_journal::missing(
         &import_journal::dir(&config.state_dir()),
         &store.journaled_imports()?,

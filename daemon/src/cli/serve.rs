@@ -1,5 +1,6 @@
 //! `phyllo serve --config FILE`.
 
+use std::process::ExitCode;
 use std::sync::Arc;
 
 use anyhow::Context;
@@ -21,8 +22,23 @@ pub fn make_counter(cfg: &Config) -> anyhow::Result<Arc<dyn LeafCounter>> {
     crate::pipeline::counting::onnx_counter(&cfg.inference)
 }
 
-/// Runs the service until SIGTERM or SIGINT.
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// Exit status after SIGHUP (`EX_TEMPFAIL`): the service stopped cleanly and
+/// asks to be started again, reading its config anew. systemd's
+/// `Restart=on-failure` restarts any non-zero exit; exit 0 would leave it down.
+pub const EXIT_HANGUP: u8 = 75;
+
+/// The signal that stops the service.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stop {
+    /// SIGTERM or SIGINT: stop for good.
+    Terminate,
+    /// SIGHUP (a reload, a closed terminal): stop, to be started again.
+    Hangup,
+}
+
+/// Runs the service until SIGTERM or SIGINT (exit 0), or SIGHUP (a clean
+/// stop too, exit [`EXIT_HANGUP`]).
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let config = args.config.load()?;
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -35,27 +51,59 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let cfg = config.clone();
         let counter = tokio::task::spawn_blocking(move || make_counter(&cfg)).await??;
         let (tx, rx) = watch::channel(false);
-        tokio::spawn(async move {
-            wait_for_signal().await;
-            tracing::info!("signal received, shutting down");
+        let stop = tokio::spawn(async move {
+            let stop = wait_for_signal().await;
+            match stop {
+                Stop::Terminate => tracing::info!("signal received, shutting down"),
+                Stop::Hangup => tracing::info!(
+                    "SIGHUP received: stopping cleanly; exit {EXIT_HANGUP} so that systemd starts phyllo again with its config read anew"
+                ),
+            }
             let _ = tx.send(true);
+            stop
         });
-        crate::pipeline::service::run(config, counter, rx).await
+        crate::pipeline::service::run(config, counter, rx).await?;
+        let hung_up = stop.is_finished() && matches!(stop.await, Ok(Stop::Hangup));
+        Ok(if hung_up {
+            ExitCode::from(EXIT_HANGUP)
+        } else {
+            ExitCode::SUCCESS
+        })
     })
 }
 
-async fn wait_for_signal() {
+/// Waits for SIGTERM, SIGINT or SIGHUP. The default action of SIGHUP ends
+/// the process on the spot, in the middle of a count, with a status systemd
+/// takes for a clean stop; handled, it stops the service as SIGTERM does.
+async fn wait_for_signal() -> Stop {
     use tokio::signal::unix::{signal, SignalKind};
+    let mut hangup = match signal(SignalKind::hangup()) {
+        Ok(s) => Some(s),
+        Err(e) => {
+            tracing::warn!("cannot listen for SIGHUP ({e})");
+            None
+        }
+    };
+    let hup = async {
+        match hangup.as_mut() {
+            Some(s) => s.recv().await,
+            None => std::future::pending().await,
+        }
+    };
     match signal(SignalKind::terminate()) {
         Ok(mut term) => {
             tokio::select! {
-                _ = term.recv() => {}
-                _ = tokio::signal::ctrl_c() => {}
+                _ = term.recv() => Stop::Terminate,
+                _ = tokio::signal::ctrl_c() => Stop::Terminate,
+                _ = hup => Stop::Hangup,
             }
         }
         Err(e) => {
-            tracing::warn!("cannot listen for SIGTERM ({e}); only Ctrl-C stops the service");
-            let _ = tokio::signal::ctrl_c().await;
+            tracing::warn!("cannot listen for SIGTERM ({e}); only Ctrl-C and SIGHUP stop the service");
+            tokio::select! {
+                _ = tokio::signal::ctrl_c() => Stop::Terminate,
+                _ = hup => Stop::Hangup,
+            }
         }
     }
 }

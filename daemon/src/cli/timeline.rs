@@ -6,7 +6,6 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 
 use super::ConfigArg;
-use crate::domain::climate_zone::ZoneRules;
 use crate::sinks::plot::TimeAxis;
 use crate::store::{PlantTimeline, Store};
 
@@ -45,10 +44,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if args.plot.is_none() && args.plots.is_none() {
             bail!("--degree-days sets a plot's axis: give --plot OUT.png or --plots DIR");
         }
-        let clocks = store.zone_clocks(
-            ZoneRules::from_config(&config.timeline.zones)?,
-            config.timeline.base_temp_c,
-        )?;
+        let clocks = store.zone_clocks(config.rules().timeline.zones.clone(), config.timeline.base_temp_c)?;
         if clocks.is_empty() {
             bail!(
                 "--degree-days: {} has no temperature log; import one first (phyllo import LOG.csv, columns timestamp,temp_c)",

@@ -245,6 +245,9 @@ pub struct TimelineParams {
     pub base_temp_c: f64,
     /// Which temperature log times each plant ([`crate::domain::climate_zone`]).
     pub zones: crate::domain::climate_zone::ZoneRules,
+    /// The section these were compiled from, as written: the store keeps its
+    /// text to notice a changed setting and refit.
+    pub source: TimelineConfig,
 }
 
 impl TimelineParams {
@@ -257,6 +260,7 @@ impl TimelineParams {
             death_penalty: cfg.death_penalty,
             base_temp_c: cfg.base_temp_c,
             zones: crate::domain::climate_zone::ZoneRules::from_config(&cfg.zones)?,
+            source: cfg.clone(),
         })
     }
 }

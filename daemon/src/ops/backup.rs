@@ -13,9 +13,8 @@ use std::time::{Duration, SystemTime};
 
 use anyhow::{bail, Context};
 use chrono::NaiveDateTime;
-use rusqlite::Connection;
 
-use crate::sinks::atomic::sync_dir;
+use crate::files::atomic::sync_dir;
 use crate::store::snapshot;
 pub use crate::store::snapshot::Contents;
 
@@ -46,22 +45,27 @@ impl Snapshot {
     }
 }
 
-/// Writes a snapshot of `conn`'s database into `dir`, named for `now`.
-pub fn snapshot(conn: &Connection, dir: &Path, now: NaiveDateTime) -> anyhow::Result<(Snapshot, Contents)> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating backup directory {}", dir.display()))?;
+/// Writes a snapshot of the `source` database into `dir`, named for `now`.
+pub fn snapshot(
+    source: &snapshot::Source,
+    dir: &Path,
+    now: NaiveDateTime,
+) -> anyhow::Result<(Snapshot, Contents)> {
+    crate::files::owner::create_dir_all(dir)
+        .with_context(|| format!("creating backup directory {}", dir.display()))?;
     remove_stale_work(dir);
     // VACUUM INTO writes at most the live pages; refuse before writing if
     // that would leave the service (often on the same disk) too little.
-    let need = snapshot::live_bytes(conn)?;
-    let free = crate::disk::free_bytes(dir)?;
-    if free < need + crate::disk::SNAPSHOT_RESERVE_BYTES {
+    let need = source.live_bytes()?;
+    let free = crate::files::disk::free_bytes(dir)?;
+    if free < need + crate::files::disk::SNAPSHOT_RESERVE_BYTES {
         bail!(
             "backup directory {} has {} free; a snapshot needs about {} and must leave {} for the service: \
              free space there, lower [backup] keep, or point [backup] dir at another disk",
             dir.display(),
-            crate::disk::human(free),
-            crate::disk::human(need),
-            crate::disk::human(crate::disk::SNAPSHOT_RESERVE_BYTES)
+            crate::files::disk::human(free),
+            crate::files::disk::human(need),
+            crate::files::disk::human(crate::files::disk::SNAPSHOT_RESERVE_BYTES)
         );
     }
     let work = tempfile::Builder::new()
@@ -72,13 +76,14 @@ pub fn snapshot(conn: &Connection, dir: &Path, now: NaiveDateTime) -> anyhow::Re
     let copy_str = copy
         .to_str()
         .with_context(|| format!("backup directory {} is not valid UTF-8", dir.display()))?;
-    snapshot::copy_into(conn, copy_str)
+    source
+        .copy_into(copy_str)
         .with_context(|| format!("copying the database into {}", copy.display()))?;
     std::fs::File::open(&copy)
         .and_then(|f| f.sync_all())
         .with_context(|| format!("syncing {}", copy.display()))?;
     let contents = check(&copy)?;
-    let source_schema = snapshot::schema_version(conn)?;
+    let source_schema = source.schema_version()?;
     if contents.schema != source_schema {
         bail!(
             "snapshot {} has schema {} but the database has {source_schema}",
@@ -89,6 +94,7 @@ pub fn snapshot(conn: &Connection, dir: &Path, now: NaiveDateTime) -> anyhow::Re
     let path = free_name(dir, now);
     std::fs::rename(&copy, &path)
         .with_context(|| format!("renaming the snapshot into {}", path.display()))?;
+    crate::files::owner::match_parent(&path);
     sync_dir(dir)?;
     let bytes = std::fs::metadata(&path)?.len();
     Ok((
@@ -130,6 +136,9 @@ pub fn restore(
     now: NaiveDateTime,
     _held: &crate::store::RestoreLock,
 ) -> anyhow::Result<Restored> {
+    // Through a symlink, the file it leads to is the one replaced (and the
+    // one the lock guards), not the link.
+    let database = &crate::files::identity::resolved(database);
     let contents = check(snapshot)?;
     let known = crate::store::migrations::SCHEMA_VERSION as i64;
     if contents.schema > known {
@@ -152,6 +161,12 @@ pub fn restore(
     std::io::copy(&mut from, staged.as_file_mut())
         .with_context(|| format!("copying {} into {}", snapshot.display(), dir.display()))?;
     staged.as_file().sync_all()?;
+    // A restore run as root must leave a database the service user can open.
+    crate::files::owner::match_parent(staged.path());
+    if let Ok(old) = std::fs::metadata(database) {
+        std::fs::set_permissions(staged.path(), old.permissions())
+            .with_context(|| format!("setting the mode of {}", staged.path().display()))?;
+    }
     let stamp = now.format(STAMP);
     let mut moved_aside = Vec::new();
     for suffix in ["", "-wal", "-shm", "-journal"] {
@@ -308,6 +323,8 @@ fn remove_stale_work(dir: &Path) {
 
 #[cfg(test)]
 mod tests {
+    use rusqlite::Connection;
+
     use super::*;
 
     fn at(s: &str) -> NaiveDateTime {
@@ -354,7 +371,7 @@ mod tests {
         let conn = db_with(tmp.path(), 5);
         let dir = tmp.path().join("backups");
         let now = at("2026-12-05 02:30:12");
-        let (snap, contents) = snapshot(&conn, &dir, now).unwrap();
+        let (snap, contents) = snapshot(&(&conn).into(), &dir, now).unwrap();
         assert_eq!(snap.path, dir.join("phyllo-2026-12-05T023012.sqlite"));
         assert_eq!(
             contents,
@@ -365,7 +382,7 @@ mod tests {
             }
         );
         // A second one in the same second gets its own name; no work directory is left.
-        let (again, _) = snapshot(&conn, &dir, now).unwrap();
+        let (again, _) = snapshot(&(&conn).into(), &dir, now).unwrap();
         assert_eq!(again.path, dir.join("phyllo-2026-12-05T023012-1.sqlite"));
         let names: Vec<String> = std::fs::read_dir(&dir)
             .unwrap()
@@ -381,7 +398,7 @@ mod tests {
         let conn = db_with(tmp.path(), 1);
         let dir = tmp.path().join("backups");
         for day in 1..=5 {
-            snapshot(&conn, &dir, at(&format!("2026-12-0{day} 02:30:00"))).unwrap();
+            snapshot(&(&conn).into(), &dir, at(&format!("2026-12-0{day} 02:30:00"))).unwrap();
         }
         std::fs::write(dir.join("README"), "operator's note").unwrap();
         let removed = prune(
@@ -452,7 +469,7 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let conn = db_with(tmp.path(), 200);
         let dir = tmp.path().join("backups");
-        let (snap, _) = snapshot(&conn, &dir, at("2026-12-05 02:30:00")).unwrap();
+        let (snap, _) = snapshot(&(&conn).into(), &dir, at("2026-12-05 02:30:00")).unwrap();
         // Overwrite the second page (the first table's b-tree) with garbage.
         let mut bytes = std::fs::read(&snap.path).unwrap();
         let page = u16::from_be_bytes([bytes[16], bytes[17]]) as usize;
@@ -466,7 +483,12 @@ mod tests {
     fn restore_moves_the_old_files_aside_and_refuses_a_locked_database() {
         let tmp = tempfile::tempdir().unwrap();
         let conn = db_with(tmp.path(), 3);
-        let (snap, _) = snapshot(&conn, &tmp.path().join("backups"), at("2026-12-05 02:30:00")).unwrap();
+        let (snap, _) = snapshot(
+            &(&conn).into(),
+            &tmp.path().join("backups"),
+            at("2026-12-05 02:30:00"),
+        )
+        .unwrap();
         conn.execute("INSERT INTO images DEFAULT VALUES", []).unwrap();
         drop(conn);
         let live = tmp.path().join("live.sqlite");
@@ -510,7 +532,12 @@ mod tests {
         let conn = db_with(tmp.path(), 1);
         let newer = crate::store::migrations::SCHEMA_VERSION as i64 + 1;
         conn.pragma_update(None, "user_version", newer).unwrap();
-        let (snap, _) = snapshot(&conn, &tmp.path().join("backups"), at("2026-12-05 02:30:00")).unwrap();
+        let (snap, _) = snapshot(
+            &(&conn).into(),
+            &tmp.path().join("backups"),
+            at("2026-12-05 02:30:00"),
+        )
+        .unwrap();
         let live = tmp.path().join("other.sqlite");
         let lock = crate::store::RestoreLock::acquire(&live).unwrap();
         let err = restore(&snap.path, &live, at("2026-12-05 09:00:00"), &lock)
@@ -528,7 +555,7 @@ mod tests {
         std::fs::write(&file, "").unwrap();
         let err = format!(
             "{:#}",
-            snapshot(&conn, &file, at("2026-12-05 02:30:00")).unwrap_err()
+            snapshot(&(&conn).into(), &file, at("2026-12-05 02:30:00")).unwrap_err()
         );
         assert!(err.contains("not-a-dir"), "{err}");
     }

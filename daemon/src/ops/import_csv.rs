@@ -88,7 +88,7 @@ pub fn read_climate(
     let mut out = Vec::new();
     for (i, rec) in rdr.records().enumerate() {
         let line = i + 2;
-        let rec = rec.with_context(|| format!("{}:{line}", path.display()))?;
+        let rec = restored(rec.with_context(|| format!("{}:{line}", path.display()))?);
         let ts = rec.get(ct).unwrap_or("");
         let taken_at =
             parse_timestamp(ts).with_context(|| format!("{}:{line}: timestamp '{ts}'", path.display()))?;
@@ -139,7 +139,7 @@ pub fn read_moves(path: &std::path::Path) -> anyhow::Result<Vec<(String, String)
     let mut out = Vec::new();
     for (i, rec) in rdr.records().enumerate() {
         let line = i + 2;
-        let rec = rec.with_context(|| format!("{}:{line}", path.display()))?;
+        let rec = restored(rec.with_context(|| format!("{}:{line}", path.display()))?);
         let (image, plant) = (rec.get(ci).unwrap_or(""), rec.get(cp).unwrap_or(""));
         if image.is_empty() || plant.is_empty() {
             bail!(
@@ -180,6 +180,12 @@ fn open_csv(path: &std::path::Path) -> anyhow::Result<(csv::Reader<std::fs::File
     Ok((rdr, headers))
 }
 
+/// A record with the `'` that phyllo's exports put before formula-like text
+/// taken off ([`crate::files::csv_cell`]): a sheet reads back as written.
+fn restored(rec: csv::StringRecord) -> csv::StringRecord {
+    rec.iter().map(crate::files::csv_cell::restore).collect()
+}
+
 /// Reads and validates the CSV; errors name the file, line and problem.
 pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Sheet> {
     let (mut rdr, headers) = open_csv(path)?;
@@ -200,7 +206,7 @@ pub fn read_rows(path: &std::path::Path) -> anyhow::Result<Sheet> {
     let mut skipped = 0;
     for (i, rec) in rdr.records().enumerate() {
         let line = i + 2;
-        let rec = rec.with_context(|| format!("{}:{line}", path.display()))?;
+        let rec = restored(rec.with_context(|| format!("{}:{line}", path.display()))?);
         let field = |c: usize| rec.get(c).unwrap_or("").to_string();
         let plant = field(cp);
         if plant.is_empty() {

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use chrono::NaiveDateTime;
 
-use crate::sinks::atomic::sync_dir;
+use crate::files::atomic::sync_dir;
 
 /// Entry names: the local time of the import, to the second.
 const STAMP: &str = "%Y-%m-%dT%H%M%S";
@@ -62,7 +62,7 @@ pub fn keep(journal: &Path, csv: &Path, now: NaiveDateTime) -> anyhow::Result<Ke
     let name = csv
         .file_name()
         .with_context(|| format!("{} names no file", csv.display()))?;
-    std::fs::create_dir_all(journal)
+    crate::files::owner::create_dir_all(journal)
         .with_context(|| format!("creating import journal {}", journal.display()))?;
     // Copied into a hidden directory first, so an entry is whole or absent.
     let work = tempfile::Builder::new()
@@ -75,6 +75,8 @@ pub fn keep(journal: &Path, csv: &Path, now: NaiveDateTime) -> anyhow::Result<Ke
     std::fs::File::open(&copy)
         .and_then(|f| f.sync_all())
         .with_context(|| format!("syncing {}", copy.display()))?;
+    crate::files::owner::match_parent(work.path());
+    crate::files::owner::match_parent(&copy);
     sync_dir(work.path())?;
     let stamp = now.format(STAMP).to_string();
     let mut id = stamp.clone();

@@ -8,8 +8,8 @@
 
 use std::path::Path;
 
+use crate::files::sha256_hex;
 use crate::pipeline::counting::LeafCounter;
-use crate::pipeline::worker::sha256_hex;
 use crate::store::{CountedImage, Store};
 
 /// What a recount did.
@@ -93,8 +93,8 @@ pub fn recount(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::TimelineConfig;
     use crate::domain::names::{ParsedName, View};
+    use crate::domain::timeline::TimelineParams;
     use crate::pipeline::counting::CountError;
     use crate::store::{CountRecord, FileFacts, Outcome};
 
@@ -127,7 +127,7 @@ mod tests {
     }
 
     fn store_with(dir: &tempfile::TempDir, files: &[(&str, &str, i64)]) -> Store {
-        let mut store = Store::open(&dir.path().join("db.sqlite"), &TimelineConfig::default(), 3).unwrap();
+        let mut store = Store::open(&dir.path().join("db.sqlite"), &TimelineParams::default(), 3).unwrap();
         let old = LengthCounter { extra: 0 };
         for (rel, content, day) in files {
             std::fs::write(dir.path().join(rel), content).unwrap();

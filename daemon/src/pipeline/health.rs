@@ -4,55 +4,13 @@
 //! to the old one), and every worker thread is alive. A failure stops the
 //! service with an error and a non-zero exit, which systemd sees and restarts.
 
-use std::os::unix::fs::MetadataExt;
-use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 
 use super::job::Stats;
+use crate::files::identity::DatabaseIdentity;
 
 /// Exit status of a service stopped by a failed health check.
 pub const EXIT_UNHEALTHY: i32 = 3;
-
-/// Which file the database is: its path, device and inode when opened.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct DatabaseIdentity {
-    path: PathBuf,
-    dev: u64,
-    ino: u64,
-}
-
-impl DatabaseIdentity {
-    /// The identity of the database file at `path` now.
-    pub fn of(path: &Path) -> anyhow::Result<DatabaseIdentity> {
-        let m = std::fs::metadata(path).map_err(|e| anyhow::anyhow!("database {}: {e}", path.display()))?;
-        Ok(DatabaseIdentity {
-            path: path.to_path_buf(),
-            dev: m.dev(),
-            ino: m.ino(),
-        })
-    }
-
-    /// `dev:ino`, as the service reports it for `phyllo status`.
-    pub fn text(&self) -> String {
-        format!("{}:{}", self.dev, self.ino)
-    }
-
-    /// Why the file at the path is no longer this database, if it is not.
-    pub fn changed(&self) -> Option<String> {
-        match std::fs::metadata(&self.path) {
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Some(format!(
-                "database {} was deleted while the service ran",
-                self.path.display()
-            )),
-            Err(e) => Some(format!("database {}: {e}", self.path.display())),
-            Ok(m) if (m.dev(), m.ino()) != (self.dev, self.ino) => Some(format!(
-                "database {} was deleted or replaced by another file while the service ran",
-                self.path.display()
-            )),
-            Ok(_) => None,
-        }
-    }
-}
 
 /// Why the service must stop, if it must: the database changed under it or
 /// a worker thread died.

@@ -1,13 +1,11 @@
-//! What a worker takes and shares: the job, the counters the service reports,
-//! the context every worker holds, and how a file's content and time are
-//! written down ([`crate::pipeline::worker`] does the work).
+//! What a worker takes and shares: the job, the counters the service reports
+//! and the context every worker holds ([`crate::pipeline::worker`] does the
+//! work).
 
 use std::collections::HashSet;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize};
 use std::sync::{Arc, Mutex};
-
-use sha2::{Digest, Sha256};
 
 use crate::config::Config;
 use crate::domain::names::NamePatterns;
@@ -57,19 +55,4 @@ pub struct WorkerCtx {
     pub in_flight: Arc<Mutex<HashSet<PathBuf>>>,
     /// Set on SIGTERM: queued jobs are handed back (left for the next start's scan).
     pub shutdown: Arc<AtomicBool>,
-}
-
-/// Formats a file's mtime as stored in the database.
-pub fn mtime_string(meta: &std::fs::Metadata) -> String {
-    match meta.modified() {
-        Ok(t) => chrono::DateTime::<chrono::Utc>::from(t)
-            .format("%Y-%m-%dT%H:%M:%S%.9fZ")
-            .to_string(),
-        Err(_) => String::new(),
-    }
-}
-
-/// Hex SHA-256.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }

@@ -18,9 +18,9 @@ use tokio::sync::{mpsc, watch};
 use tokio::time::MissedTickBehavior;
 
 use crate::config::Config;
-use crate::domain::names::NamePatterns;
+use crate::files::identity::DatabaseIdentity;
 use crate::pipeline::counting::LeafCounter;
-use crate::pipeline::health::{self, DatabaseIdentity};
+use crate::pipeline::health;
 use crate::pipeline::source::intake::{Intake, ScanRequest};
 use crate::pipeline::source::watch::Watch;
 use crate::pipeline::source::{scan, Candidate, Filter};
@@ -42,10 +42,14 @@ pub async fn run(
     counter: Arc<dyn LeafCounter>,
     mut shutdown: watch::Receiver<bool>,
 ) -> anyhow::Result<()> {
-    let names = NamePatterns::from_config(&config.names)?;
+    let names = config.rules().names.clone();
     // Held until the service returns: one service per database.
     let _lock = DatabaseLock::acquire(&config.database, "phyllo serve")?;
-    let mut status_store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
+    let mut status_store = Store::open(
+        &config.database,
+        &config.rules().timeline,
+        config.inference.max_attempts,
+    )?;
     let model_id = counter.model_id();
     let settings = counter.settings();
     let stats = Arc::new(Stats::default());
@@ -63,7 +67,11 @@ pub async fn run(
     let workers = spawn_workers(config.inference.workers, job_rx, ctx)?;
 
     let mut sources = Sources::start(&config)?;
-    let intake_store = Store::open(&config.database, &config.timeline, config.inference.max_attempts)?;
+    let intake_store = Store::open(
+        &config.database,
+        &config.rules().timeline,
+        config.inference.max_attempts,
+    )?;
     let mut intake = Intake::new(
         sources.filter.clone(),
         &config.watch,
@@ -161,7 +169,7 @@ impl Sources {
         let (tx, rx) = mpsc::channel::<Candidate>(4096);
         let filter = Filter::new(&config.drop_dir, &config.watch);
         let filter = if config.watch.skip_top_views {
-            filter.skipping_top_views(NamePatterns::from_config(&config.names)?)
+            filter.skipping_top_views(config.rules().names.clone())
         } else {
             filter
         };
@@ -296,7 +304,11 @@ fn spawn_scan(
     }
     let (config, filter, tx, scanning) = (config.clone(), filter.clone(), tx.clone(), scanning.clone());
     tokio::task::spawn_blocking(move || {
-        let store = Store::open(&config.database, &config.timeline, config.inference.max_attempts);
+        let store = Store::open(
+            &config.database,
+            &config.rules().timeline,
+            config.inference.max_attempts,
+        );
         let files = scan::scan(&filter, &dir);
         let mut sent = 0;
         for path in &files {
@@ -306,7 +318,9 @@ fn spawn_scan(
                 crate::pipeline::source::stat_or_link(path),
             ) {
                 (Ok(s), Some(rel), Ok(meta)) => s
-                    .is_known(&rel, meta.len(), &crate::pipeline::worker::mtime_string(&meta))
+                    .is_known(&rel, meta.len(), &crate::files::mtime_string(&meta), || {
+                        crate::pipeline::source::intake::readable(path)
+                    })
                     .unwrap_or(false),
                 _ => false,
             };
@@ -373,7 +387,7 @@ async fn report_status(
     prune.set_missed_tick_behavior(MissedTickBehavior::Delay);
     let mut disk = tokio::time::interval(DISK_EVERY);
     disk.set_missed_tick_behavior(MissedTickBehavior::Delay);
-    let mut low_disk = crate::disk::LowDiskWatch::new(state_dir);
+    let mut low_disk = crate::files::disk::LowDiskWatch::new(state_dir);
     loop {
         let prune_now = tokio::select! {
             _ = shutdown.wait_for(|s| *s) => return store,
@@ -421,7 +435,7 @@ async fn report_status(
             Err(e) => panic!("status writer panicked: {e}"),
         };
         let disk_note = low_disk.low().map_or(String::new(), |free| {
-            format!("; LOW DISK: {} free", crate::disk::human(free))
+            format!("; LOW DISK: {} free", crate::files::disk::human(free))
         });
         systemd::status(&format!(
             "queue {queued}, busy {busy}, counted {counted}, failed {failed}; last {last}{disk_note}"

@@ -11,7 +11,8 @@ use std::panic::AssertUnwindSafe;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
-use super::job::{mtime_string, sha256_hex, Job, WorkerCtx};
+use super::job::{Job, WorkerCtx};
+use crate::files::{mtime_string, sha256_hex};
 use crate::store::{FileFacts, Outcome, Recorded, Store};
 
 /// The text of a panic's payload (empty when it carries none).
@@ -95,7 +96,6 @@ mod tests {
     use std::sync::Mutex;
 
     use crate::config::Config;
-    use crate::domain::names::NamePatterns;
     use crate::pipeline::counting::{CountError, LeafCounter};
     use crate::pipeline::job::Stats;
     use crate::store::CountRecord;
@@ -119,7 +119,7 @@ mod tests {
         ))
         .unwrap();
         Arc::new(WorkerCtx {
-            names: NamePatterns::from_config(&config.names).unwrap(),
+            names: config.rules().names.clone(),
             config,
             counter: Arc::new(NeverCalled),
             stats: Arc::new(Stats::default()),
@@ -132,7 +132,7 @@ mod tests {
     fn a_panic_past_the_model_fails_the_image_and_the_worker_goes_on() {
         let dir = tempfile::tempdir().unwrap();
         let ctx = ctx(dir.path());
-        let mut store = Store::open(&ctx.config.database, &ctx.config.timeline, 3).unwrap();
+        let mut store = Store::open(&ctx.config.database, &ctx.config.rules().timeline, 3).unwrap();
         let path = dir.path().join("P1_2019-05-10_09-18-07_Vis_SV_0.png");
         std::fs::write(&path, b"bytes").unwrap();
         let job = Job {

@@ -13,8 +13,9 @@ use std::thread::JoinHandle;
 
 use tokio::sync::mpsc;
 
-pub use super::job::{mtime_string, sha256_hex, Job, Stats, WorkerCtx};
+pub use super::job::{Job, Stats, WorkerCtx};
 use crate::domain::names::ParsedName;
+use crate::files::{mtime_string, sha256_hex};
 use crate::pipeline::supervise::{panic_message, supervised, Lifeline};
 use crate::store::{CountRecord, FileFacts, Outcome, Precheck, Recorded, Store};
 
@@ -29,7 +30,7 @@ pub fn spawn_workers(
     for i in 0..n {
         let mut store = Store::open(
             &ctx.config.database,
-            &ctx.config.timeline,
+            &ctx.config.rules().timeline,
             ctx.config.inference.max_attempts,
         )?;
         let (rx, ctx) = (rx.clone(), ctx.clone());
@@ -111,13 +112,31 @@ fn read_inside(root: &Path, job: &Job) -> Read {
                 _ => Read::Vanished,
             };
         }
+        Err(e) if crate::pipeline::source::too_long(&e) => {
+            return refuse(
+                format!(
+                    "{name}: its path is {} bytes, longer than the {} the system can open: \
+                     move it (or its folders) to a shorter path",
+                    job.path.as_os_str().len(),
+                    libc::PATH_MAX
+                ),
+                false,
+            );
+        }
         Err(e) if e.raw_os_error() == Some(40) => {
             // ELOOP
             return refuse(format!("{name}: symbolic link loop, not followed"), false);
         }
         Err(e) if e.kind() == std::io::ErrorKind::PermissionDenied => {
-            // The operator may fix the permissions: retried up to max_attempts.
-            return refuse(format!("{name}: permission denied: {e}"), true);
+            // The operator may fix the permissions: retried up to max_attempts,
+            // and again whenever the file turns readable (Store::is_known).
+            return refuse(
+                format!(
+                    "{name}{}: {e} (fix its permissions: phyllo tries it again once it can read it)",
+                    crate::store::PERMISSION_DENIED
+                ),
+                true,
+            );
         }
         Err(e) => return refuse(format!("{name}: cannot open: {e}"), true),
     };

@@ -4,16 +4,15 @@
 
 use std::path::Path;
 
-use rusqlite::Connection;
-
 pub use crate::store::exports::KINDS;
-use crate::store::exports::{check_kind, export_rows, Cell, ExportLine};
+use crate::store::exports::{check_kind, Cell, ExportLine};
+use crate::store::Store;
 
 /// Writes one export kind to `out` atomically. Returns the number of rows.
-pub fn export(conn: &Connection, kind: &str, since: Option<&str>, out: &Path) -> anyhow::Result<usize> {
+pub fn export(store: &Store, kind: &str, since: Option<&str>, out: &Path) -> anyhow::Result<usize> {
     check_kind(kind)?;
     write_csv(out, |w| {
-        export_rows(conn, kind, since, |line| {
+        store.export_rows(kind, since, |line| {
             match line {
                 ExportLine::Header(names) => w.write_record(names)?,
                 ExportLine::Row(cells) => w.write_record(cells.iter().map(cell_text))?,
@@ -25,9 +24,9 @@ pub fn export(conn: &Connection, kind: &str, since: Option<&str>, out: &Path) ->
 
 /// One export kind in memory, as its CSV would hold it: (header, rows).
 /// For small kinds (`plants`); the others stream through [`export`].
-pub fn table(conn: &Connection, kind: &str) -> anyhow::Result<(Vec<String>, Vec<Vec<String>>)> {
+pub fn table(store: &Store, kind: &str) -> anyhow::Result<(Vec<String>, Vec<Vec<String>>)> {
     let (mut header, mut rows) = (Vec::new(), Vec::new());
-    export_rows(conn, kind, None, |line| {
+    store.export_rows(kind, None, |line| {
         match line {
             ExportLine::Header(names) => header = names.to_vec(),
             ExportLine::Row(cells) => rows.push(cells.iter().map(cell_text).collect()),
@@ -47,22 +46,41 @@ fn cell_text(cell: &Cell) -> String {
     }
 }
 
-/// The CSV writer [`write_csv`] hands out.
-pub type CsvOut = csv::Writer<std::fs::File>;
+/// The CSV writer [`write_csv`] hands out: every field goes through
+/// [`crate::files::csv_cell::neutralise`], so no CSV a person opens runs a
+/// formula from a plant id, a note or a path.
+pub struct CsvOut(csv::Writer<std::fs::File>);
+
+impl CsvOut {
+    /// Writes one record.
+    pub fn write_record<I, T>(&mut self, record: I) -> csv::Result<()>
+    where
+        I: IntoIterator<Item = T>,
+        T: AsRef<str>,
+    {
+        self.0.write_record(
+            record
+                .into_iter()
+                .map(|f| crate::files::csv_cell::neutralise(f.as_ref()).into_owned()),
+        )
+    }
+}
 
 /// Writes a CSV (CRLF, as RFC 4180) and renames it into place
-/// ([`super::atomic::replace`]); `fill` writes the records and returns the
+/// ([`crate::files::atomic::replace`]); `fill` writes the records and returns the
 /// number of rows. On any error `out` is left as it was.
 pub fn write_csv(
     out: &Path,
     fill: impl FnOnce(&mut CsvOut) -> anyhow::Result<usize>,
 ) -> anyhow::Result<usize> {
-    super::atomic::replace(out, ".csv", |tmp| {
-        let mut w = csv::WriterBuilder::new()
-            .terminator(csv::Terminator::CRLF)
-            .from_path(tmp)?;
+    crate::files::atomic::replace(out, ".csv", |tmp| {
+        let mut w = CsvOut(
+            csv::WriterBuilder::new()
+                .terminator(csv::Terminator::CRLF)
+                .from_path(tmp)?,
+        );
         let n = fill(&mut w)?;
-        w.flush()?;
+        w.0.flush()?;
         Ok(n)
     })
 }
@@ -92,9 +110,9 @@ mod tests {
 
     #[test]
     fn unknown_kind_is_refused() {
-        let conn = Connection::open_in_memory().unwrap();
         let dir = tempfile::tempdir().unwrap();
-        let err = export(&conn, "leaves", None, &dir.path().join("x.csv")).unwrap_err();
+        let store = Store::open(&dir.path().join("db.sqlite"), &Default::default(), 3).unwrap();
+        let err = export(&store, "leaves", None, &dir.path().join("x.csv")).unwrap_err();
         assert!(
             err.to_string()
                 .contains("images, sessions, timeline, events, plants"),

@@ -189,7 +189,7 @@ pub fn plot(rep: &GroupReport, out: &Path) -> anyhow::Result<()> {
         .iter()
         .map(|d| d.leaves_emerged.mean + d.leaves_emerged.sd)
         .fold(1.0, f64::max);
-    super::atomic::replace(out, ".png", |tmp| {
+    crate::files::atomic::replace(out, ".png", |tmp| {
         let root = BitMapBackend::new(tmp, (1000, 600)).into_drawing_area();
         let err = |e: DrawingAreaErrorKind<_>| anyhow!("drawing {}: {e:?}", out.display());
         root.fill(&WHITE).map_err(err)?;

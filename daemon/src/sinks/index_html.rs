@@ -351,7 +351,7 @@ fn leaves_due((head, rows): &(Vec<String>, Vec<Vec<String>>)) -> Due {
 
 /// Writes the page to `out`, renamed into place whole.
 pub fn write(out: &Path, idx: &Index) -> anyhow::Result<()> {
-    super::atomic::replace(out, ".html", |tmp| Ok(std::fs::write(tmp, render(idx))?))
+    crate::files::atomic::replace(out, ".html", |tmp| Ok(std::fs::write(tmp, render(idx))?))
 }
 
 #[cfg(test)]

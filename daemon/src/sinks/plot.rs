@@ -339,7 +339,7 @@ pub fn plot_all(
     dir: &Path,
     clocks: Option<&crate::domain::climate_zone::ZoneClocks>,
 ) -> anyhow::Result<PlotFiles> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    crate::files::owner::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut drawn = PlotFiles::default();
     let mut used = std::collections::HashSet::new();
     for t in timelines {
@@ -356,12 +356,12 @@ pub fn plot_all(
         }
         let out = dir.join(format!("{stem}.png"));
         let in_degree_days = clocks.and_then(|c| c.for_plant(&t.plant)).map(|clock| {
-            super::atomic::replace(&out, ".png", |tmp| plot(t, tmp, TimeAxis::DegreeDays(clock)))
+            crate::files::atomic::replace(&out, ".png", |tmp| plot(t, tmp, TimeAxis::DegreeDays(clock)))
         });
         // Days where asked for, and where the plant's zone has no log or one
         // that does not cover its sessions (every x is worked out before drawing).
         if !matches!(in_degree_days, Some(Ok(()))) {
-            super::atomic::replace(&out, ".png", |tmp| plot(t, tmp, TimeAxis::Days))?;
+            crate::files::atomic::replace(&out, ".png", |tmp| plot(t, tmp, TimeAxis::Days))?;
             drawn.in_days += usize::from(clocks.is_some());
         }
         drawn.files.insert(t.plant.clone(), format!("{stem}.png"));

@@ -95,14 +95,14 @@ pub fn write(out: &Path, items: &[Item]) -> anyhow::Result<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::TimelineConfig;
     use crate::domain::names::{ParsedName, View};
+    use crate::domain::timeline::TimelineParams;
     use crate::store::{CountRecord, FileFacts, Outcome};
 
     #[test]
     fn a_session_in_doubt_comes_with_its_images_and_a_filled_sheet_imports() {
         let dir = tempfile::tempdir().unwrap();
-        let mut store = Store::open(&dir.path().join("db.sqlite"), &TimelineConfig::default(), 3).unwrap();
+        let mut store = Store::open(&dir.path().join("db.sqlite"), &TimelineParams::default(), 3).unwrap();
         let start = chrono::NaiveDate::from_ymd_opt(2026, 11, 1)
             .unwrap()
             .and_hms_opt(8, 0, 0)
@@ -115,7 +115,7 @@ mod tests {
                     rel: rel.clone(),
                     size: 1,
                     mtime: None,
-                    sha256: crate::pipeline::worker::sha256_hex(rel.as_bytes()),
+                    sha256: crate::files::sha256_hex(rel.as_bytes()),
                 };
                 let name = ParsedName {
                     plant: "P1".into(),

@@ -23,7 +23,7 @@ pub const MIN_SIDE: u32 = 480;
 /// drop directory may have been cleaned since) does not stop the others: the
 /// error, after them, names each.
 pub fn draw_sites(t: &PlantTimeline, drop_dir: &Path, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    crate::files::owner::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut written = Vec::new();
     let mut unreadable = Vec::new();
     for site in &t.sites {
@@ -75,14 +75,13 @@ pub struct NewestSites {
 /// and box, so a site that moves (a refit) is drawn again, and files of sites
 /// that no longer exist are removed.
 pub fn draw_newest(timelines: &[PlantTimeline], drop_dir: &Path, dir: &Path) -> anyhow::Result<NewestSites> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    crate::files::owner::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut done = NewestSites::default();
     for t in timelines {
         let Some(site) = t.sites.iter().max_by_key(|s| s.leaf) else {
             continue;
         };
-        let digest =
-            crate::pipeline::worker::sha256_hex(format!("{}|{:?}", site.image, site.bbox).as_bytes());
+        let digest = crate::files::sha256_hex(format!("{}|{:?}", site.image, site.bbox).as_bytes());
         let name = format!(
             "{}-leaf-{:02}-{}.png",
             super::plot::file_stem(&t.plant),
@@ -115,7 +114,7 @@ pub fn draw_newest(timelines: &[PlantTimeline], drop_dir: &Path, dir: &Path) -> 
 
 /// Writes `img` to `out` as PNG, renamed into place whole.
 fn write_png(img: &RgbImage, out: &Path) -> anyhow::Result<()> {
-    super::atomic::replace(out, ".png", |tmp| {
+    crate::files::atomic::replace(out, ".png", |tmp| {
         img.save_with_format(tmp, image::ImageFormat::Png)
             .with_context(|| format!("writing {}", out.display()))
     })

@@ -93,9 +93,21 @@ pub enum ExportLine<'a> {
     Row(&'a [Cell]),
 }
 
-/// Streams one export kind (rows since `since` where the kind has a time)
-/// to `each`: the header first, then every row. Returns the number of rows.
-pub fn export_rows(
+impl super::Store {
+    /// Streams one export kind (rows since `since` where the kind has a time)
+    /// to `each`: the header first, then every row. Returns the number of rows.
+    pub fn export_rows(
+        &self,
+        kind: &str,
+        since: Option<&str>,
+        each: impl FnMut(ExportLine<'_>) -> anyhow::Result<()>,
+    ) -> anyhow::Result<usize> {
+        stream(&self.conn, kind, since, each)
+    }
+}
+
+/// [`super::Store::export_rows`] on a connection.
+fn stream(
     conn: &Connection,
     kind: &str,
     since: Option<&str>,

@@ -99,20 +99,39 @@ pub enum Precheck {
     },
 }
 
+/// What a failure for a file's permissions says ("P1.png: permission
+/// denied: …"): such a failure is tried again once the file can be read.
+pub const PERMISSION_DENIED: &str = ": permission denied";
+
 impl Store {
     /// True if the latest version of `rel` has this size and mtime and needs
     /// no more work: lets periodic rescans skip files without reading them.
-    pub fn is_known(&self, rel: &str, size: u64, mtime: &str) -> anyhow::Result<bool> {
-        let row: Option<(i64, Option<String>, String, i64, u32)> = self
+    /// A file that failed for its permissions until its attempts ran out is
+    /// tried again once `readable` says it can be read: `chmod` changes
+    /// neither its size nor its mtime.
+    pub fn is_known(
+        &self,
+        rel: &str,
+        size: u64,
+        mtime: &str,
+        readable: impl FnOnce() -> bool,
+    ) -> anyhow::Result<bool> {
+        /// size, mtime, state, retry, attempts, error
+        type Row = (i64, Option<String>, String, i64, u32, Option<String>);
+        let row: Option<Row> = self
             .conn
             .prepare_cached(
-                "SELECT size, mtime, state, retry, attempts FROM images WHERE path = ?1 ORDER BY version DESC LIMIT 1",
+                "SELECT size, mtime, state, retry, attempts, error FROM images WHERE path = ?1 ORDER BY version DESC LIMIT 1",
             )?
-            .query_row([rel], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?)))
+            .query_row([rel], |r| {
+                Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?, r.get(5)?))
+            })
             .optional()?;
         Ok(match row {
-            Some((s, Some(m), state, retry, attempts)) if s as u64 == size && m == mtime => {
-                state != "failed" || retry == 0 || attempts >= self.max_attempts
+            Some((s, Some(m), state, retry, attempts, error)) if s as u64 == size && m == mtime => {
+                let gave_up = state == "failed" && retry != 0 && attempts >= self.max_attempts;
+                let unreadable = error.is_some_and(|e| e.contains(PERMISSION_DENIED));
+                state != "failed" || retry == 0 || (gave_up && !(unreadable && readable()))
             }
             _ => false,
         })

@@ -128,21 +128,26 @@ impl RestoreLock {
 /// Opens (creating it and its directory) a lock file.
 fn open(path: &Path) -> anyhow::Result<File> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
+        crate::files::owner::create_dir_all(dir)
             .with_context(|| format!("creating database directory {}", dir.display()))?;
     }
-    OpenOptions::new()
+    let file = OpenOptions::new()
         .read(true)
         .write(true)
         .create(true)
         .truncate(false)
         .open(path)
-        .with_context(|| format!("opening lock file {}", path.display()))
+        .with_context(|| format!("opening lock file {}", path.display()))?;
+    // Made by root, it would keep the service user out of every later lock.
+    crate::files::owner::match_parent(path);
+    Ok(file)
 }
 
-/// `<database><suffix>`, beside the database.
+/// `<database><suffix>`, beside the file the database path leads to: a
+/// symlink to a live database, or another spelling of its path, finds the
+/// same lock file and is refused.
 fn lock_path(database: &Path, suffix: &str) -> PathBuf {
-    let mut name = database.as_os_str().to_owned();
+    let mut name = crate::files::identity::resolved(database).into_os_string();
     name.push(suffix);
     PathBuf::from(name)
 }
@@ -189,5 +194,25 @@ mod tests {
         drop(restore);
         WritersLock::shared(&db).unwrap();
         DatabaseLock::acquire(&db, "phyllo serve").unwrap();
+    }
+
+    #[test]
+    fn a_symlink_to_the_live_database_finds_the_same_lock() {
+        let dir = tempfile::tempdir().unwrap();
+        let live = dir.path().join("state/phyllo.sqlite");
+        std::fs::create_dir_all(live.parent().unwrap()).unwrap();
+        std::fs::write(&live, b"").unwrap();
+        std::fs::create_dir(dir.path().join("other")).unwrap();
+        let link = dir.path().join("other/db.sqlite");
+        std::os::unix::fs::symlink(&live, &link).unwrap();
+        let _service = DatabaseLock::acquire(&live, "phyllo serve").unwrap();
+        let err = DatabaseLock::acquire(&link, "phyllo serve")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("in use by phyllo serve"), "{err}");
+        let err = RestoreLock::acquire(&link).unwrap_err().to_string();
+        assert!(err.contains("in use by phyllo serve"), "{err}");
+        let spelled = dir.path().join("other/../state/./phyllo.sqlite");
+        assert!(DatabaseLock::acquire(&spelled, "phyllo serve").is_err());
     }
 }

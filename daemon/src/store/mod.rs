@@ -33,7 +33,7 @@ mod recount;
 mod site_rows;
 pub mod snapshot;
 
-pub use images::{CountRecord, FileFacts, Outcome, Precheck, Recorded};
+pub use images::{CountRecord, FileFacts, Outcome, Precheck, Recorded, PERMISSION_DENIED};
 pub use imports::{Reading, Unimported};
 pub use lock::{DatabaseLock, RestoreLock, WritersLock};
 pub use recount::CountedImage;
@@ -99,14 +99,18 @@ fn timeline_settings(
 }
 
 impl Store {
-    /// Opens (creating if needed) a database for writing and migrates it.
-    pub fn open(path: &Path, tl: &crate::config::TimelineConfig, max_attempts: u32) -> anyhow::Result<Store> {
+    /// Opens (creating if needed) a database for writing and migrates it;
+    /// timelines are fitted by `timeline` (the config's compiled rules).
+    pub fn open(path: &Path, timeline: &TimelineParams, max_attempts: u32) -> anyhow::Result<Store> {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)
+            crate::files::owner::create_dir_all(dir)
                 .with_context(|| format!("creating database directory {}", dir.display()))?;
         }
         let mut conn =
             Connection::open(path).with_context(|| format!("opening database {}", path.display()))?;
+        // A database root creates must stay the service user's (SQLite gives
+        // its -wal and -shm files the database file's owner itself).
+        crate::files::owner::match_parent(path);
         conn.busy_timeout(Duration::from_secs(30))?;
         let mode: String = conn.pragma_update_and_check(None, "journal_mode", "WAL", |r| r.get(0))?;
         if !mode.eq_ignore_ascii_case("wal") {
@@ -123,14 +127,14 @@ impl Store {
         let mut store = Store {
             conn,
             fit: Fit {
-                params: TimelineParams::from_config(tl)?,
-                rule: tl.fusion.clone(),
+                params: timeline.clone(),
+                rule: timeline.source.fusion.clone(),
             },
             max_attempts,
         };
         // Changed timeline settings (in the config, or new defaults after an
         // upgrade) would otherwise leave plants that get no new image fitted the old way.
-        let fit = timeline_settings(tl, &store.fit.params.zones);
+        let fit = timeline_settings(&timeline.source, &timeline.zones);
         let stored = store.stored_timeline_settings()?;
         if stored.as_deref() != Some(fit.as_str()) {
             let has_sessions: bool =
@@ -180,7 +184,8 @@ impl Store {
         &self.fit.params.zones
     }
 
-    /// The underlying connection, for read queries of the sinks.
+    /// The underlying connection, for the store's own tests: every other
+    /// reader asks for the rows it needs.
     pub fn conn(&self) -> &Connection {
         &self.conn
     }

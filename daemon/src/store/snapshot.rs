@@ -19,24 +19,45 @@ pub struct Contents {
     pub schema: i64,
 }
 
-/// Bytes the live pages take: about what a copy will.
-pub fn live_bytes(conn: &Connection) -> anyhow::Result<u64> {
-    Ok(conn.query_row(
-        "SELECT page_count * page_size FROM pragma_page_count(), pragma_page_size()",
-        [],
-        |r| r.get::<_, i64>(0),
-    )? as u64)
+/// The live database as a backup sees it: the three queries a snapshot
+/// needs, so the backup never holds the store's connection.
+pub struct Source<'a>(&'a Connection);
+
+impl super::Store {
+    /// The live database, for a snapshot ([`crate::ops::backup::snapshot`]).
+    pub fn snapshot_source(&self) -> Source<'_> {
+        Source(&self.conn)
+    }
 }
 
-/// Copies the database, compacted and self-contained, into the new file `path`.
-pub fn copy_into(conn: &Connection, path: &str) -> anyhow::Result<()> {
-    conn.execute("VACUUM INTO ?1", [path])?;
-    Ok(())
+/// A database opened by a test with its own SQL (any schema version).
+#[cfg(test)]
+impl<'a> From<&'a Connection> for Source<'a> {
+    fn from(conn: &'a Connection) -> Self {
+        Source(conn)
+    }
 }
 
-/// The database's schema version (`PRAGMA user_version`).
-pub fn schema_version(conn: &Connection) -> anyhow::Result<i64> {
-    Ok(conn.pragma_query_value(None, "user_version", |r| r.get(0))?)
+impl Source<'_> {
+    /// Bytes the live pages take: about what a copy will.
+    pub fn live_bytes(&self) -> anyhow::Result<u64> {
+        Ok(self.0.query_row(
+            "SELECT page_count * page_size FROM pragma_page_count(), pragma_page_size()",
+            [],
+            |r| r.get::<_, i64>(0),
+        )? as u64)
+    }
+
+    /// Copies the database, compacted and self-contained, into the new file `path`.
+    pub fn copy_into(&self, path: &str) -> anyhow::Result<()> {
+        self.0.execute("VACUUM INTO ?1", [path])?;
+        Ok(())
+    }
+
+    /// The database's schema version (`PRAGMA user_version`).
+    pub fn schema_version(&self) -> anyhow::Result<i64> {
+        Ok(self.0.pragma_query_value(None, "user_version", |r| r.get(0))?)
+    }
 }
 
 /// Opens a snapshot read-only, runs SQLite's full integrity check and reads

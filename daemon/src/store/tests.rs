@@ -7,10 +7,10 @@ use chrono::{Duration, NaiveDate};
 use super::*;
 use crate::config::TimelineConfig;
 use crate::domain::names::{ParsedName, View};
-use crate::pipeline::worker::sha256_hex;
+use crate::files::sha256_hex;
 
 fn open(dir: &tempfile::TempDir) -> Store {
-    Store::open(&db(dir), &TimelineConfig::default(), 3).unwrap()
+    Store::open(&db(dir), &TimelineParams::default(), 3).unwrap()
 }
 
 fn db(dir: &tempfile::TempDir) -> PathBuf {
@@ -151,7 +151,7 @@ fn same_content_is_never_counted_twice() {
     .unwrap();
     // Same path, same content (touched, or rescanned after a restart).
     assert!(matches!(s.precheck(&f, None).unwrap(), Precheck::Skip(_)));
-    assert!(s.is_known("P1_a.png", 1, "mtime-of-a").unwrap());
+    assert!(s.is_known("P1_a.png", 1, "mtime-of-a", || true).unwrap());
     // Same content copied elsewhere: recorded as a duplicate, not counted.
     let copy = facts("copy/P1_a.png", "a");
     assert!(matches!(s.precheck(&copy, None).unwrap(), Precheck::Skip(why) if why.contains("same content")));
@@ -290,7 +290,7 @@ fn failures_are_recorded_and_retried_only_when_transient() {
         },
     )
     .unwrap();
-    assert!(s.is_known("holiday.png", 1, "mtime-of-x").unwrap());
+    assert!(s.is_known("holiday.png", 1, "mtime-of-x", || true).unwrap());
     assert!(matches!(s.precheck(&bad, None).unwrap(), Precheck::Skip(_)));
     assert_eq!(s.recent_failures(5).unwrap(), vec![("holiday.png".into(), err)]);
     // A runtime failure is retried up to max_attempts (3).
@@ -322,6 +322,44 @@ fn failures_are_recorded_and_retried_only_when_transient() {
     assert_eq!(attempts, 3);
     let feed = s.feed_after(0, None, 100).unwrap();
     assert!(feed.iter().all(|r| r.kind == "failed"));
+}
+
+/// Issue 57 item 11: `chmod` changes neither size nor mtime, so a file that
+/// failed for its permissions until its attempts ran out is tried again once
+/// it can be read, and only then; other spent failures stay done.
+#[test]
+fn a_file_that_failed_for_its_permissions_is_tried_again_once_readable() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    for (rel, error) in [
+        (
+            "P1_a.png",
+            format!("P1_a.png{PERMISSION_DENIED}: Permission denied (os error 13)"),
+        ),
+        ("P1_b.png", "runtime busy".to_string()),
+    ] {
+        let f = facts(rel, "b");
+        for _ in 0..3 {
+            let outcome = Outcome::Failed {
+                name: None,
+                error: error.clone(),
+                retry: true,
+            };
+            s.record(&f, outcome).unwrap();
+        }
+    }
+    assert!(
+        s.is_known("P1_a.png", 1, "mtime-of-b", || false).unwrap(),
+        "still unreadable"
+    );
+    assert!(
+        !s.is_known("P1_a.png", 1, "mtime-of-b", || true).unwrap(),
+        "readable now"
+    );
+    assert!(
+        s.is_known("P1_b.png", 1, "mtime-of-b", || true).unwrap(),
+        "spent, not for permissions"
+    );
 }
 
 #[test]
@@ -507,7 +545,7 @@ fn migrations_are_versioned_and_readers_check_them() {
     drop(conn);
     let err = format!(
         "{:#}",
-        Store::open(&db(&dir), &TimelineConfig::default(), 3)
+        Store::open(&db(&dir), &TimelineParams::default(), 3)
             .err()
             .unwrap()
     );
@@ -541,7 +579,7 @@ fn opening_with_other_timeline_settings_refits_every_plant() {
         fusion: "view:SV_0".into(),
         ..TimelineConfig::default()
     };
-    let mut s = Store::open(&db(&dir), &tl, 3).unwrap();
+    let mut s = Store::open(&db(&dir), &TimelineParams::from_config(&tl).unwrap(), 3).unwrap();
     // Opening with another rule refits at once, so no plant keeps the old fusion.
     let first = s.plant_timeline("P1").unwrap().unwrap().sessions[0].clone();
     assert_eq!(first.fused, 7.0);
@@ -559,7 +597,7 @@ fn opening_with_other_timeline_settings_refits_every_plant() {
         death_penalty: 0.0,
         ..TimelineConfig::default()
     };
-    let s = Store::open(&db(&dir), &tl, 3).unwrap();
+    let s = Store::open(&db(&dir), &TimelineParams::from_config(&tl).unwrap(), 3).unwrap();
     assert_eq!(s.plant_timeline("P1").unwrap().unwrap().sessions[0].fused, 9.0);
     let kept: String = s
         .conn()
@@ -592,7 +630,7 @@ fn a_settings_refit_says_so_once_instead_of_per_leaf() {
         fusion: "max-side".into(),
         ..TimelineConfig::default()
     };
-    let s = Store::open(&db(&dir), &tl, 3).unwrap();
+    let s = Store::open(&db(&dir), &TimelineParams::from_config(&tl).unwrap(), 3).unwrap();
     let leaves: Vec<u32> = s
         .plant_timeline("P1")
         .unwrap()
@@ -743,7 +781,7 @@ fn each_zone_times_its_own_plants() {
         ],
         ..TimelineConfig::default()
     };
-    let mut s = Store::open(&db(&dir), &tl, 3).unwrap();
+    let mut s = Store::open(&db(&dir), &TimelineParams::from_config(&tl).unwrap(), 3).unwrap();
     assert_eq!(
         s.climate_summary()
             .unwrap()
@@ -874,7 +912,7 @@ fn each_new_leaf_is_placed_where_it_appeared() {
     );
     // The export carries them after the older columns.
     let out = dir.path().join("events.csv");
-    crate::sinks::export::export(s.conn(), "events", None, &out).unwrap();
+    crate::sinks::export::export(&s, "events", None, &out).unwrap();
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(
         text.starts_with("plant,leaf,emerged_at,seen_at,phyllochron_days,site_view,site_image,site_x,site_y,site_bbox,site_area\r\n"),

@@ -7,13 +7,18 @@ use super::Filter;
 
 /// Every image file under `dir` (recursively) that the filter wants.
 /// Unreadable directories are logged and skipped: one bad folder must not
-/// hide the rest of the tree.
+/// hide the rest of the tree. Files and folders whose path is too long to
+/// open are returned too, so that the worker records them as failed, named.
 pub fn scan(filter: &Filter, dir: &Path) -> Vec<PathBuf> {
     let mut out = Vec::new();
     let mut stack = vec![dir.to_path_buf()];
     while let Some(d) = stack.pop() {
         let entries = match std::fs::read_dir(&d) {
             Ok(e) => e,
+            Err(e) if super::too_long(&e) => {
+                out.push(d);
+                continue;
+            }
             Err(e) => {
                 if d != filter.root() || e.kind() != std::io::ErrorKind::NotFound {
                     tracing::warn!("scan: cannot read directory {}: {e}", d.display());
@@ -25,12 +30,24 @@ pub fn scan(filter: &Filter, dir: &Path) -> Vec<PathBuf> {
             let path = entry.path();
             // file_type() does not follow symlinks; metadata() does, so links to images are
             // candidates (the worker refuses those that lead out of the drop directory).
-            let Ok(meta) = std::fs::metadata(&path) else {
-                // A link that cannot be followed (loop, missing target): the worker records why.
-                if entry.file_type().is_ok_and(|t| t.is_symlink()) && filter.wants_file(&path) {
-                    out.push(path);
+            let meta = match std::fs::metadata(&path) {
+                Ok(m) => m,
+                Err(e) => {
+                    // A link that cannot be followed (loop, missing target) or a
+                    // path too long to open: the worker records why.
+                    let kind = entry.file_type().ok();
+                    let link = kind.is_some_and(|t| t.is_symlink());
+                    let folder = kind.is_some_and(|t| t.is_dir());
+                    let wanted = if folder {
+                        filter.wants_dir(&path)
+                    } else {
+                        filter.wants_file(&path)
+                    };
+                    if (link || super::too_long(&e)) && wanted {
+                        out.push(path);
+                    }
+                    continue;
                 }
-                continue;
             };
             if meta.is_dir() {
                 if filter.wants_dir(&path) && !entry.file_type().map(|t| t.is_symlink()).unwrap_or(false) {

@@ -12,6 +12,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use serde::Deserialize;
 
+use crate::files::identity::resolved;
+
+mod rules;
+
+pub use rules::Rules;
+
 pub use crate::domain::climate_zone::ZoneConfig;
 pub use crate::domain::groups::GroupsConfig;
 pub use crate::domain::names::{NamesConfig, PatternConfig};
@@ -52,6 +58,9 @@ pub struct Config {
     /// A folder of CSVs (temperature logs, people's counts) `phyllo import --dir` takes.
     #[serde(default)]
     pub import: ImportConfig,
+    /// The rules above, compiled by [`Config::parse`].
+    #[serde(skip, default = "Rules::defaults")]
+    rules: Rules,
 }
 
 /// `[import]`: where the greenhouse's climate computer (or people) leave CSVs
@@ -286,14 +295,46 @@ impl Config {
         {
             fix(p);
         }
+        cfg.check_own_dirs()
+            .with_context(|| format!("config file {}", path.display()))?;
         Ok(cfg)
+    }
+
+    /// Refuses a drop directory that holds the service's own files: exported
+    /// plots there would be counted as images (and fail), snapshots and the
+    /// database would be scanned with every rescan. Compared by where the
+    /// paths lead (symlinks followed), not by how they are spelled.
+    fn check_own_dirs(&self) -> anyhow::Result<()> {
+        let drop = resolved(&self.drop_dir);
+        let own = [
+            ("the database", self.database.clone()),
+            ("[export] dir", self.export_dir()),
+            ("[backup] dir", self.backup_dir()),
+        ];
+        for (what, dir) in own {
+            if resolved(&dir).starts_with(&drop) {
+                bail!(
+                    "{what} ({}) lies inside the drop directory ({}): the service would read its own \
+                     files as images; keep the drop directory for the imaging station alone",
+                    dir.display(),
+                    self.drop_dir.display()
+                );
+            }
+        }
+        Ok(())
     }
 
     /// Parses and validates configuration text.
     pub fn parse(text: &str) -> anyhow::Result<Config> {
-        let cfg: Config = toml::from_str(text)?;
+        let mut cfg: Config = toml::from_str(text)?;
         cfg.validate()?;
+        cfg.rules = Rules::compile(&cfg)?;
         Ok(cfg)
+    }
+
+    /// The compiled name patterns, timeline and group rules.
+    pub fn rules(&self) -> &Rules {
+        &self.rules
     }
 
     fn validate(&self) -> anyhow::Result<()> {
@@ -324,10 +365,6 @@ impl Config {
         if !(self.feed.keep_days >= 0.0 && self.feed.keep_days.is_finite()) {
             bail!("feed.keep_days must be 0 (keep every entry) or a positive number of days");
         }
-        crate::domain::timeline::FusionRule::parse(&self.timeline.fusion)?;
-        crate::domain::climate_zone::ZoneRules::from_config(&self.timeline.zones)?;
-        crate::domain::names::NamePatterns::from_config(&self.names)?;
-        crate::domain::groups::GroupRule::from_config(&self.groups)?;
         Ok(())
     }
 
@@ -577,6 +614,42 @@ mod tests {
             Config::load(&dir.path().join("missing.toml")).unwrap_err()
         );
         assert!(err.contains("missing.toml"), "{err}");
+    }
+
+    #[test]
+    fn the_services_own_folders_may_not_lie_in_the_drop_directory() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("drop")).unwrap();
+        std::os::unix::fs::symlink(dir.path().join("drop"), dir.path().join("link")).unwrap();
+        let path = dir.path().join("phyllo.toml");
+        let load = |extra: &str| {
+            std::fs::write(&path, format!("drop_dir = \"drop\"\n{extra}")).unwrap();
+            Config::load(&path).map_err(|e| format!("{e:#}"))
+        };
+        assert!(load("database = \"state/db.sqlite\"\n").is_ok());
+        for (extra, what) in [
+            ("database = \"drop/state/db.sqlite\"\n", "the database"),
+            (
+                "database = \"s/db.sqlite\"\n[export]\ndir = \"drop\"\n",
+                "[export] dir",
+            ),
+            (
+                "database = \"s/db.sqlite\"\n[export]\ndir = \"link/out\"\n",
+                "[export] dir",
+            ),
+            (
+                "database = \"s/db.sqlite\"\n[backup]\ndir = \"s/../drop/b\"\n",
+                "[backup] dir",
+            ),
+        ] {
+            let err = load(extra).unwrap_err();
+            assert!(
+                err.contains(what)
+                    && err.contains("inside the drop directory")
+                    && err.contains("phyllo.toml"),
+                "{extra}: {err}"
+            );
+        }
     }
 
     /// The example config parses and documents every key the code knows.

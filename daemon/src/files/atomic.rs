@@ -35,7 +35,7 @@ pub fn replace<T>(
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    super::owner::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     sweep_once(dir);
     let tmp = tempfile::Builder::new()
         .prefix(TMP_PREFIX)
@@ -59,6 +59,7 @@ pub fn replace<T>(
         .with_context(|| format!("syncing {}", tmp.path().display()))?;
     tmp.persist(out)
         .with_context(|| format!("renaming into {}", out.display()))?;
+    super::owner::match_parent(out);
     Ok(value)
 }
 
