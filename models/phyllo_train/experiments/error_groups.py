@@ -1,9 +1,9 @@
 """Count errors of one `phyllo eval --json --per-image` run, split into groups of images.
 
     phyllo eval --dataset DIR --split all --json --per-image > run.json
-    python -m phyllo_train.error_groups run.json --dataset DIR
+    python -m phyllo_train.experiments.error_groups run.json --dataset DIR
     phyllo eval --counts crops_counts.csv --images crops --json --per-image > crops.json
-    python -m phyllo_train.error_groups crops.json --truth 4-11 12-15 14-15
+    python -m phyllo_train.experiments.error_groups crops.json --truth 4-11 12-15 14-15
 
 Prints one row per group: images, exact / within ±1 / RMSE / bias. Every run
 gets the `--truth` ranges (true counts, inclusive). With `--dataset`, the
@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import read_manifest
-from .truth_rules import metrics as count_metrics
+from ..dataset import read_manifest
+from ..tools.truth_rules import metrics as count_metrics
 
 EIGHT_WEEKS = 56.0
 PANICLE_DAY = 62.0

@@ -1,6 +1,6 @@
 """Adapt a checkpoint's BatchNorm statistics to unlabelled images (AdaBN), then export it::
 
-    python -m phyllo_train.adapt_bn --checkpoint runs/s10-onnx/best.pt --images DIR [--images DIR] \
+    python -m phyllo_train.experiments.adapt_bn --checkpoint runs/s10-onnx/best.pt --images DIR [--images DIR] \
         --out runs/NAME/best.pt [--batch 3 --limit N]
 
 Every BatchNorm keeps its learned scale and shift but normalises by the mean and
@@ -28,9 +28,9 @@ import torch
 from PIL import Image
 from torch import nn
 
-from .contract import load_contract
+from ..contract import load_contract
 from .daemon_inputs import image_paths, reference_pipeline
-from .export import load_checkpoint_model
+from ..export import load_checkpoint_model
 
 __all__ = ["adapt_batchnorm", "daemon_tiles", "image_paths", "main"]
 
@@ -80,7 +80,7 @@ def adapt_batchnorm(model: nn.Module, batches: list[torch.Tensor], layers: int |
 
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.adapt_bn", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.experiments.adapt_bn", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--checkpoint", type=Path, required=True, help="training checkpoint (.pt) with BatchNorm statistics")
     ap.add_argument("--images", type=Path, action="append", required=True,

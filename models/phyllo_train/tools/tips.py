@@ -1,9 +1,9 @@
 """A leaf-tip head on a trained network's frozen features, its training and its export.
 
-    python -m phyllo_train.tips train --base models/phyllo.onnx --data DIR [--data DIR2] --out RUN_DIR
-    python -m phyllo_train.tips cache --base models/phyllo.onnx --data DIR --out CACHE --passes 2
-    python -m phyllo_train.tips train --base models/phyllo.onnx --data DIR --cache CACHE --out RUN_DIR --width 48
-    python -m phyllo_train.tips export --base models/phyllo.onnx --head RUN_DIR/last.pt --out MODEL.onnx
+    python -m phyllo_train.tools.tips train --base models/phyllo.onnx --data DIR [--data DIR2] --out RUN_DIR
+    python -m phyllo_train.tools.tips cache --base models/phyllo.onnx --data DIR --out CACHE --passes 2
+    python -m phyllo_train.tools.tips train --base models/phyllo.onnx --data DIR --cache CACHE --out RUN_DIR --width 48
+    python -m phyllo_train.tools.tips export --base models/phyllo.onnx --head RUN_DIR/last.pt --out MODEL.onnx
 
 Human annotators count a leaf by marking its tip (``leaf_tips.csv`` of the
 real development set is exactly that). The Panoptic-DeepLab centre of a leaf
@@ -35,13 +35,13 @@ import torch
 from torch import nn
 from torch.utils.data import ConcatDataset, DataLoader
 
-from .augment import AugmentConfig
-from .contract import Contract, load_contract
-from .dataset import PanopticDataset
-from .export import check_onnx, export_onnx
+from ..augment import AugmentConfig
+from ..contract import Contract, load_contract
+from ..dataset import PanopticDataset
+from ..export import check_onnx, export_onnx
 from .from_onnx import has_tip_output, load_folded
-from .losses import tip_focal_loss
-from .model import PhylloNet, TipHead, TipNet, build_model, count_parameters
+from ..losses import tip_focal_loss
+from ..model import PhylloNet, TipHead, TipNet, build_model, count_parameters
 from .tip_cache import FeatureCache, build as build_cache
 
 
@@ -220,7 +220,7 @@ def cache(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.tips", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.tools.tips", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
     tr = sub.add_parser("train", help="train the tip head on frozen features")

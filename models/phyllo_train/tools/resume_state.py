@@ -1,7 +1,7 @@
 """A training run's resume point, small enough to commit, so one schedule can span sessions.
 
-    python -m phyllo_train.resume_state pack RUN_DIR/last.pt --out schedule/NAME.pt
-    python -m phyllo_train.resume_state unpack schedule/NAME.pt --out RUN_DIR/last.pt
+    python -m phyllo_train.tools.resume_state pack RUN_DIR/last.pt --out schedule/NAME.pt
+    python -m phyllo_train.tools.resume_state unpack schedule/NAME.pt --out RUN_DIR/last.pt
 
 A session's run directory does not outlive the session; the repository does. ``pack`` keeps
 what ``train`` needs to go on exactly where it stopped (raw weights, EMA weights, step, RNG
@@ -60,7 +60,7 @@ def _save(obj: dict, path: Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """CLI: ``pack`` or ``unpack`` one file."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.resume_state", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.tools.resume_state", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("action", choices=("pack", "unpack"))
     ap.add_argument("checkpoint", type=Path)

@@ -14,7 +14,7 @@ import numpy as np
 import torch
 from torch.nn import functional as F
 
-from .contract import Contract
+from ..contract import Contract
 
 
 @dataclass
@@ -88,7 +88,7 @@ def decode(semantic: torch.Tensor, center: torch.Tensor, offset: torch.Tensor, c
 
 def label_leaf_count(label: np.ndarray, contract: Contract) -> int:
     """Leaf instances in a label that would survive at the output stride with ``min_leaf_area``."""
-    from .targets import downsample_label
+    from ..targets import downsample_label
 
     low = downsample_label(label, contract.stride)
     div = contract.label_divisor

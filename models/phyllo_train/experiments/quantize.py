@@ -1,6 +1,6 @@
 """Int8 quantisation of an exported model with ONNX Runtime (static, QDQ, per-channel weights).
 
-    python -m phyllo_train.quantize phyllo-e40.onnx --out /tmp/e40-int8.onnx \
+    python -m phyllo_train.experiments.quantize phyllo-e40.onnx --out /tmp/e40-int8.onnx \
         --calibrate /work/data/train-e40 --images 24 [--encoder-only]
 
 Activations are calibrated on training images (never an evaluation set), read
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from .contract import load_contract
+from ..contract import load_contract
 
 
 def calibration_inputs(dataset: Path, images: int, tile: int | None = None) -> list[np.ndarray]:

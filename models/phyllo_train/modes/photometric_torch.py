@@ -18,8 +18,8 @@ import math
 import torch
 import torch.nn.functional as F
 
-from .augment import LUMA, PhotometricDraw
-from .contract import Contract
+from ..augment import LUMA, PhotometricDraw
+from ..contract import Contract
 
 # Columns of PhotometricDraw.to_vector().
 (_BACKLIGHT, _BL_GAIN, _BL_DESAT, _HSV, _HUE, _SAT, _WB_R, _WB_G, _WB_B, _BRIGHT, _CONTRAST, _GRAD_ANGLE,

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import torch
 
-from .contract import Contract
-from .export import load_checkpoint_model
+from ..contract import Contract
+from ..export import load_checkpoint_model
 
 MODES = ("center", "center+offset")
 """Which targets the teacher replaces on side views."""

@@ -8,7 +8,7 @@ the same predictions, and the metrics against every visible leaf by plant
 age (seedlings are where counting is hardest)::
 
     phyllo eval --dataset DIR --split val --per-image > per_image.txt
-    python -m phyllo_train.truth_rules --dataset DIR per_image.txt [--tip-gaps 4,8,16]
+    python -m phyllo_train.tools.truth_rules --dataset DIR per_image.txt [--tip-gaps 4,8,16]
 
 ``--tip-gaps`` adds the rule human annotators follow on the real frames
 (``leaf_tips.csv``: a leaf counts when its tip is seen, or cut by the image's
@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import read_manifest
-from .tip_truth import MAX_TIP_GAP, open_count, person_count
+from ..dataset import read_manifest
+from ..tip_truth import MAX_TIP_GAP, open_count, person_count
 
 
 # Seedlings, young plants, grown plants.

@@ -1,6 +1,6 @@
 """Where a training step's time goes on this machine, measured side by side in one run::
 
-    python -m phyllo_train.train_speed --data DIR [--crop 448 --batch 3 --threads 2 --samples 24 --steps 6]
+    python -m phyllo_train.experiments.train_speed --data DIR [--crop 448 --batch 3 --threads 2 --samples 24 --steps 6]
 
 It prints one table: how many augmented samples per second the data pipeline makes in one
 process (what one ``--workers`` process adds), with the photometric ops in it and without
@@ -19,12 +19,12 @@ import time
 
 import torch
 
-from .augment import AugmentConfig
-from .dataset import PanopticDataset
-from .losses import LossWeights
-from .model import ENCODERS, build_model
-from .photometric_torch import finish_batch
-from .train import collate, forward_losses, freeze_encoder, set_train_mode
+from ..augment import AugmentConfig
+from ..dataset import PanopticDataset
+from ..losses import LossWeights
+from ..model import ENCODERS, build_model
+from ..modes.photometric_torch import finish_batch
+from ..train import collate, forward_losses, freeze_encoder, set_train_mode
 
 
 def loader_rate(ds: PanopticDataset, samples: int) -> float:

@@ -1,6 +1,6 @@
 """How real and synthetic images differ at the model's input, one row per source::
 
-    python -m phyllo_train.domain_stats --images REAL_DIR --images DATASET [--augmented DATASET] [--limit 80]
+    python -m phyllo_train.experiments.domain_stats --images REAL_DIR --images DATASET [--augmented DATASET] [--limit 80]
 
 ``--images`` sources (folders of images or phyllo-gen datasets) are resized by the
 contract's scale rule, as the daemon resizes them; ``--augmented`` draws training
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from .augment import AugmentConfig, add_noise_args, with_noise_args
+from ..augment import AugmentConfig, add_noise_args, with_noise_args
 from .daemon_inputs import image_paths, reference_pipeline
 
 STATS = ("wall R", "wall G", "wall B", "plant R", "plant G", "plant B", "plant G−R", "wall roughness")
@@ -58,7 +58,7 @@ def augmented_crops(dataset: Path, limit: int, crop: int, aug=None):
 
     ``aug`` is the :class:`~phyllo_train.augment.AugmentConfig` (default: the recipe's at ``crop``).
     """
-    from .dataset import PanopticDataset
+    from ..dataset import PanopticDataset
 
     ds = PanopticDataset(dataset, "train", aug or AugmentConfig(crop=crop), seed=19)
     mean, std = (np.asarray(v, np.float32) for v in (ds.contract.mean, ds.contract.std))
@@ -81,7 +81,7 @@ def source_row(name: str, images) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.domain_stats", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.experiments.domain_stats", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--images", type=Path, action="append", default=[],
                     help="folder of images or phyllo-gen dataset, resized as the daemon resizes it (repeatable)")

@@ -1,6 +1,6 @@
 """Rebuild a training checkpoint from an exported ONNX model.
 
-    python -m phyllo_train.from_onnx models/phyllo.onnx --out runs/s10-onnx/best.pt \
+    python -m phyllo_train.tools.from_onnx models/phyllo.onnx --out runs/s10-onnx/best.pt \
         [--calibrate /work/data/train-s2 --images 64]
 
 A wider network (``train --width/--dec/--ins-width``) is rebuilt as its
@@ -38,9 +38,9 @@ import torch
 from onnx import numpy_helper
 from torch import nn
 
-from .contract import Contract, load_contract
-from .export import ARCHITECTURE_KEY, check_onnx
-from .model import PhylloNet, TipHead, TipNet, architecture_kwargs, build_model
+from ..contract import Contract, load_contract
+from ..export import ARCHITECTURE_KEY, check_onnx
+from ..model import PhylloNet, TipHead, TipNet, architecture_kwargs, build_model
 
 
 def has_tip_output(path: str | Path, contract: Contract) -> bool:
@@ -199,8 +199,8 @@ def calibration_batches(data: Path, contract: Contract, images: int, batch: int 
 
     Use the fine-tuning run's batch size and crop: BatchNorm's statistics are per batch.
     """
-    from .augment import AugmentConfig
-    from .dataset import PanopticDataset
+    from ..augment import AugmentConfig
+    from ..dataset import PanopticDataset
 
     ds = PanopticDataset(data, "train", AugmentConfig(crop=crop), contract, seed=seed, limit=images)
     xs = [ds[i][0] for i in range(len(ds))]
@@ -214,7 +214,7 @@ def max_ort_difference(model: nn.Module, path: str | Path, contract: Contract, s
 
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.from_onnx", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.tools.from_onnx", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("onnx", type=Path, help="an ONNX file exported by phyllo_train.export (stride-4 instance heads)")
     ap.add_argument("--out", type=Path, required=True, help="checkpoint to write (.pt), usable as --init")
@@ -223,7 +223,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--batch", type=int, default=3, help="calibration batch size: the fine-tuning run's --batch")
     ap.add_argument("--crop", type=int, default=448, help="calibration crop side: the fine-tuning run's --crop")
     ap.add_argument("--head-out", type=Path, default=None,
-                    help="with a tip model: also write its tip head as a `phyllo_train.tips train` checkpoint "
+                    help="with a tip model: also write its tip head as a `phyllo_train.tools.tips train` checkpoint "
                          "(for `train --tips --init-tip-head`)")
     ap.add_argument("--width", default=None,
                     help="encoder channels (train --width) of a file exported before the architecture was "
@@ -243,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         # A model with a tip head is rebuilt whole and checked whole; the checkpoint keeps
-        # the base network only (phyllo_train.tips trains the head on top of it again).
+        # the base network only (phyllo_train.tools.tips trains the head on top of it again).
         tip = has_tip_output(args.onnx, contract)
         net = TipNet(model, TipHead()) if tip else model
         n = load_folded(net, args.onnx, contract)

@@ -1,6 +1,6 @@
 """Frozen base features of augmented crops, stored once so the tip head can train for many epochs.
 
-    python -m phyllo_train.tips cache --base models/phyllo.onnx --data DIR [--data DIR2] --out CACHE --passes 2
+    python -m phyllo_train.tools.tips cache --base models/phyllo.onnx --data DIR [--data DIR2] --out CACHE --passes 2
 
 The base never changes while the tip head trains, so each augmented crop's
 features (stem at stride 2, decoder at stride 4) and tip target are
@@ -23,10 +23,10 @@ import numpy as np
 import torch
 from torch.utils.data import ConcatDataset, DataLoader, Dataset, Subset
 
-from .augment import AugmentConfig
-from .contract import Contract
-from .dataset import PanopticDataset
-from .model import PhylloNet
+from ..augment import AugmentConfig
+from ..contract import Contract
+from ..dataset import PanopticDataset
+from ..model import PhylloNet
 
 META = "meta.json"
 ARRAYS = ("f2", "d4", "tip")

@@ -1,6 +1,6 @@
 """Measure ONNX Runtime latency per tile, as the daemon runs it (CPU provider, fixed thread count).
 
-    python -m phyllo_train.bench models/phyllo-untrained.onnx --threads 2 --batch 1 --size 512
+    python -m phyllo_train.tools.bench models/phyllo-untrained.onnx --threads 2 --batch 1 --size 512
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ def bench(path: str, threads: int = 2, batch: int = 1, size: int = 512, runs: in
 
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.bench", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.tools.bench", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("model")
     ap.add_argument("--threads", type=int, default=2)

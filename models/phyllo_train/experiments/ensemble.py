@@ -1,12 +1,12 @@
 """Combine trained ONNX models into one ONNX model that averages their outputs.
 
-    python -m phyllo_train.ensemble models/phyllo.onnx other.onnx --out ens.onnx --name phyllo-ens
+    python -m phyllo_train.experiments.ensemble models/phyllo.onnx other.onnx --out ens.onnx --name phyllo-ens
 
 Each member runs on the same normalised image; the ensemble's ``semantic``
 (logits), ``center`` and ``offset`` outputs are the members' weighted means
 (and ``tip`` when every member has one). The file is an ordinary phyllo model:
 the Rust side loads it unchanged, at the members' summed inference cost.
-Averaging outputs, unlike averaging weights (:mod:`phyllo_train.soup`), needs
+Averaging outputs, unlike averaging weights (:mod:`phyllo_train.experiments.soup`), needs
 no shared training history: members only have to agree on the contract.
 """
 
@@ -20,8 +20,8 @@ import numpy as np
 import onnx
 from onnx import compose, helper, numpy_helper
 
-from .contract import load_contract
-from .export import stamp_metadata
+from ..contract import load_contract
+from ..export import stamp_metadata
 
 def _meta(model: onnx.ModelProto) -> dict[str, str]:
     return {p.key: p.value for p in model.metadata_props}
@@ -100,7 +100,7 @@ def build_ensemble(paths: list[Path], *, name: str, weights: list[float] | None 
                                            for n, m in zip(member_names, metas)),
     })
     stamp_metadata(model, meta)
-    model.producer_name = "phyllo_train.ensemble"
+    model.producer_name = "phyllo_train.ensemble"  # unchanged by the move: the files it writes say what they always said
     model.doc_string = f"phyllo {name}: mean of {', '.join(member_names)}"
     onnx.checker.check_model(model)
     return model

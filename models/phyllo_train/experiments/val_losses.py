@@ -1,6 +1,6 @@
 """Validation losses of training checkpoints on one phyllo-gen split, side by side.
 
-    python -m phyllo_train.val_losses --data /work/data/calib-s700001 --split val --limit 120 \\
+    python -m phyllo_train.experiments.val_losses --data /work/data/calib-s700001 --split val --limit 120 \\
         runs/s10-onnx/best.pt runs/RUN/step-000300.pt
 
 One row per checkpoint (its exported, EMA weights): the training losses on
@@ -18,17 +18,17 @@ from pathlib import Path
 
 import torch
 
-from .augment import AugmentConfig
-from .contract import load_contract
-from .dataset import PanopticDataset
-from .export import load_checkpoint_model
-from .losses import LossWeights
-from .train import evaluate
+from ..augment import AugmentConfig
+from ..contract import load_contract
+from ..dataset import PanopticDataset
+from ..export import load_checkpoint_model
+from ..losses import LossWeights
+from ..train import evaluate
 
 
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point: prints a Markdown table."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.val_losses", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.experiments.val_losses", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("checkpoints", type=Path, nargs="+", help="training checkpoints (.pt)")
     ap.add_argument("--data", type=Path, required=True, help="phyllo-gen dataset")

@@ -4,7 +4,7 @@ predicted leaf: what it is against the truth, its area, score and the
 border it shares with other leaf instances)::
 
     phyllo eval --dataset DIR --split all --segments segments.tsv
-    python -m phyllo_train.segment_rules segments.tsv [more.tsv ...]
+    python -m phyllo_train.experiments.segment_rules segments.tsv [more.tsv ...]
 
 The rule scored is the one a split-off piece of a leaf suggests: drop (merge
 into its neighbour) an instance whose score is below S, that shares at least

@@ -1,8 +1,8 @@
 """Predicted leaf tips against the tips people marked on real frames.
 
     target/release/phyllo count --json --model MODEL IMAGES... > counts.jsonl
-    python -m phyllo_train.tip_match --tips ../shared/data/unl-maize-dev/leaf_tips.csv --counts counts.jsonl
-    python -m phyllo_train.tip_match --dataset DIR --split val --counts counts.jsonl   # phyllo-gen leaf_tips
+    python -m phyllo_train.experiments.tip_match --tips ../shared/data/unl-maize-dev/leaf_tips.csv --counts counts.jsonl
+    python -m phyllo_train.experiments.tip_match --dataset DIR --split val --counts counts.jsonl   # phyllo-gen leaf_tips
 
 ``phyllo count --json`` lists a tip model's tip peaks (``tips``: x, y, score
 in image pixels). Each marked tip (``tips_xy``) is matched one to one to a
@@ -48,7 +48,7 @@ def read_marked(path: Path) -> dict[str, np.ndarray]:
 
 def read_dataset_tips(root: Path, split: str) -> dict[str, np.ndarray]:
     """``image file name -> (K, 2)`` apparent tips of a phyllo-gen dataset's ``split`` (its ``leaf_tips``)."""
-    from .dataset import read_manifest
+    from ..dataset import read_manifest
 
     return {Path(r["image"]).name: np.array(list(r.get("leaf_tips", {}).values()), np.float64).reshape(-1, 2)
             for r in read_manifest(root, split)}
@@ -70,7 +70,7 @@ def read_counts(path: Path) -> dict[str, dict]:
 
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point: one row per radius, summed over the images both files name."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.tip_match", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.experiments.tip_match", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     src = ap.add_mutually_exclusive_group(required=True)
     src.add_argument("--tips", type=Path, help="leaf_tips.csv (file, ..., tips_xy)")

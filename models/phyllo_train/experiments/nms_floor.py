@@ -7,7 +7,7 @@ side) keeps only one of them. This measures the second from the labels
 alone, at the scale the counter sees each frame (the contract's small-plant
 zoom, output stride)::
 
-    python -m phyllo_train.nms_floor /work/data/calib-s700001 [--kernels 3,5,7]
+    python -m phyllo_train.experiments.nms_floor /work/data/calib-s700001 [--kernels 3,5,7]
 
 Centres are leaves' centres of mass (the training target). Centres are kept
 greedily, larger leaves first (a larger leaf is likelier to hold the higher
@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .augment import plant_zoom
-from .contract import Contract, load_contract
-from .dataset import read_label, read_manifest
+from ..augment import plant_zoom
+from ..contract import Contract, load_contract
+from ..dataset import read_label, read_manifest
 
 
 def leaf_centres(label: np.ndarray, contract: Contract) -> tuple[np.ndarray, np.ndarray]:
@@ -53,7 +53,7 @@ def lost_to_window(centres: np.ndarray, areas: np.ndarray, kernel: int) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point: one line per window size."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.nms_floor", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.experiments.nms_floor", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("dataset", type=Path)
     ap.add_argument("--kernels", default="3,5,7", help="window sides to try, output pixels (the contract's is 7)")

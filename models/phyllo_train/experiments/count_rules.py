@@ -1,8 +1,8 @@
 """Score leaf-count rules of a tip model offline, from one `phyllo count --json` run.
 
     target/release/phyllo count --json --model TIPS.onnx --tip-threshold 0.3 IMAGES... > counts.jsonl
-    python -m phyllo_train.count_rules --counts counts.jsonl --dataset DIR [--split all]
-    python -m phyllo_train.count_rules --counts counts.jsonl --truth crops_counts.csv
+    python -m phyllo_train.experiments.count_rules --counts counts.jsonl --dataset DIR [--split all]
+    python -m phyllo_train.experiments.count_rules --counts counts.jsonl --truth crops_counts.csv
 
 A tip model's ``count --json`` lists every tip peak above the run's tip
 threshold with the leaf instance it joins (``tip_instances``). Peaks do not
@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from .tip_match import read_counts
-from .truth_rules import metrics
+from ..tools.truth_rules import metrics
 
 
 NO_CAP = 1 << 30
@@ -88,7 +88,7 @@ def read_truth(dataset: Path | None, split: str, truth_csv: Path | None) -> dict
     if truth_csv is not None:
         with open(truth_csv, newline="", encoding="utf-8") as f:
             return {Path(r["file"]).name: int(r["leaf_count"]) for r in csv.DictReader(f)}
-    from .dataset import read_manifest
+    from ..dataset import read_manifest
 
     rows = read_manifest(dataset, None if split == "all" else split)
     return {Path(r["image"]).name: int(r["visible_leaf_count"]) for r in rows}
@@ -102,7 +102,7 @@ def default_rules(thresholds: list[float], caps: list[int], areas: list[float], 
 
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point: one Markdown row per rule."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.count_rules", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.experiments.count_rules", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--counts", type=Path, required=True, help="JSON lines of `phyllo count --json`")
     ap.add_argument("--dataset", type=Path, help="phyllo-gen dataset (truth: visible_leaf_count)")

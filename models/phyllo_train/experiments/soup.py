@@ -1,6 +1,6 @@
 """Average the weights of checkpoints fine-tuned from one parent (a model soup).
 
-    python -m phyllo_train.soup --out RUN_DIR/best.pt A/best.pt B/best.pt [--weights 0.5,0.5]
+    python -m phyllo_train.experiments.soup --out RUN_DIR/best.pt A/best.pt B/best.pt [--weights 0.5,0.5]
 
 Fine-tunes of one model lie in one basin of the loss, so their weighted
 mean is a model of its own, often better than either (Wortsman et al.,
@@ -43,7 +43,7 @@ def soup_state(states: list[dict[str, torch.Tensor]], weights: list[float]) -> d
 
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point."""
-    ap = argparse.ArgumentParser(prog="python -m phyllo_train.soup", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m phyllo_train.experiments.soup", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("checkpoints", type=Path, nargs="+", help="training checkpoints (.pt) of one network")
     ap.add_argument("--out", type=Path, required=True)

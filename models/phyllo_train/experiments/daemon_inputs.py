@@ -6,7 +6,7 @@ import functools
 import importlib.util
 from pathlib import Path
 
-from .dataset import read_manifest
+from ..dataset import read_manifest
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff"}
 
@@ -14,7 +14,7 @@ IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff"}
 @functools.cache
 def reference_pipeline():
     """models/reference_pipeline.py, the Python twin of the daemon's tiling (a script, not a package module)."""
-    path = Path(__file__).resolve().parents[1] / "reference_pipeline.py"
+    path = Path(__file__).resolve().parents[2] / "reference_pipeline.py"
     spec = importlib.util.spec_from_file_location("phyllo_reference_pipeline", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
