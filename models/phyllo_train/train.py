@@ -353,7 +353,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--procs", type=int, default=1,
                     help="CPU processes sharing the run, each with --threads threads and a batch of --batch "
                          "(a step takes procs x batch); 2 with --threads 1 trained 1.24x the images per second "
-                         "of one process on 2 threads here (scripts/train-procs-speed.sh)")
+                         "of one process on 2 threads here (scripts/experiments/train-procs-speed.sh)")
     ap.add_argument("--workers", type=int, default=1, help="data loader worker processes")
     ap.add_argument("--preload", action="store_true",
                     help="decode every training image and label once, before the loader workers start "

@@ -3,7 +3,7 @@
 On this project's 2-core CPU two single-threaded runs side by side train
 1.6x the images of one run on two threads, and one run split over two
 single-threaded processes 1.24x (models/EXPERIMENTS.md, "Two processes, one
-thread each"; `scripts/train-procs-speed.sh`): a step's many small depthwise
+thread each"; `scripts/experiments/train-procs-speed.sh`): a step's many small depthwise
 and BatchNorm ops scale poorly across threads; the split run gives back
 part of the gain, most likely to every step waiting for the slower process.
 Every process takes its own slice of each step's batch

@@ -5,9 +5,9 @@
 # exact / within one / RMSE / MAE / bias / R². Calibrate on a dataset whose seed is used
 # neither for training nor for the withheld test set (models/MODEL.md names
 # the one used), never on the real dev images.
-# Usage: scripts/postprocess-sweep.sh DATASET [MODEL] [THRESHOLDS] [RADII] [MIN_AREAS] [ZOOM_HEIGHTS]
+# Usage: scripts/experiments/postprocess-sweep.sh DATASET [MODEL] [THRESHOLDS] [RADII] [MIN_AREAS] [ZOOM_HEIGHTS]
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 data=${1:?usage: postprocess-sweep.sh DATASET [MODEL] [THRESHOLDS] [RADII] [MIN_AREAS] [ZOOM_HEIGHTS]}
 model=${2:-$root/models/phyllo.onnx}
 thresholds=${3:-0.1 0.2 0.3 0.4}

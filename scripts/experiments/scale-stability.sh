@@ -4,11 +4,11 @@
 # --scale`) and prints, per model, the share of frames whose counts at 1.5×
 # and 2× both stay within ±1 of the count at 1× (issue 58's stability figure;
 # target ≥ 90 %), with each scale's exact share against the truth.
-# Usage: scripts/scale-stability.sh DATASET MODEL.onnx [MODEL.onnx ...]
+# Usage: scripts/experiments/scale-stability.sh DATASET MODEL.onnx [MODEL.onnx ...]
 # Environment: EXTRA (more `phyllo eval` options, e.g. "--count-rule tips"),
 # THREADS [2], LIMIT (first N frames only, default all).
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 usage="usage: scale-stability.sh DATASET MODEL.onnx [MODEL.onnx ...]"
 data=${1:?$usage}
 shift

@@ -2,7 +2,7 @@
 """Two cues a frame or crop might give of the camera's zoom, measured on the dev images
 (models/EXPERIMENTS.md, "What a zoomed camera costs"): neither is adopted.
 
-    models/.venv/bin/python scripts/zoom-cues.py ../shared/data/unl-maize-dev
+    models/.venv/bin/python scripts/experiments/zoom-cues.py ../shared/data/unl-maize-dev
 
 - carrier: the black carrier as two dark legs (vertical runs) joined by a dark bar near
   the plant's axis, searched in each frame; prints what it finds and how many it found.

@@ -7,12 +7,12 @@
 # machine's noise alike. Each is exported, then counted side by side by
 # scripts/score-by-group.sh on a synthetic calibration set (which chooses) and
 # on the real dev sets by experiment (reported only).
-# Usage: scripts/encoder-ab.sh TRAIN_DATA CALIB_DATA [MINUTES] [OUT_DIR]
+# Usage: scripts/experiments/encoder-ab.sh TRAIN_DATA CALIB_DATA [MINUTES] [OUT_DIR]
 #   MINUTES  each run's wall-clock budget (default 20); its LR schedule decays over it
 #   OUT_DIR  default models/runs/ab-<minutes>m
 # Environment: PYTHON [models/.venv/bin/python], ARGS [extra train arguments].
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 [ $# -ge 2 ] || { sed -n '2,14p' "$0"; exit 2; }
 train=$(realpath "$1")
 calib=$(realpath "$2")

@@ -3,10 +3,10 @@
 # two threads, the same run split over two single-threaded processes
 # (train --procs 2), and two separate single-threaded runs at once (an A/B);
 # the median of each run's logged rates after warm-up.
-# Usage: scripts/train-procs-speed.sh DATASET INIT_CHECKPOINT [STEPS]
+# Usage: scripts/experiments/train-procs-speed.sh DATASET INIT_CHECKPOINT [STEPS]
 # (models/EXPERIMENTS.md, "Two processes, one thread each").
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 usage="usage: train-procs-speed.sh DATASET INIT_CHECKPOINT [STEPS]"
 data=$(cd "${1:?$usage}" && pwd)
 init=$(realpath "${2:?$usage}")

@@ -4,9 +4,9 @@
 # writes filtered copies of the real frames and crops (JPEG re-encode at
 # quality 95 alone, Gaussian blur of radius 0.6 and 1.0, 3×3 median) and
 # counts each with one model, one table row per filter and set.
-# Usage: scripts/real-filter-probe.sh [MODEL] [REAL_DIR]
+# Usage: scripts/experiments/real-filter-probe.sh [MODEL] [REAL_DIR]
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 model=${1:-$root/models/phyllo.onnx}
 real=${2:-$root/../shared/data/unl-maize-dev}
 py=${PYTHON:-$root/models/.venv/bin/python}

@@ -11,7 +11,7 @@ where the zoom went wrong has a pipeline problem; one whose deficit is the
 same in both has a network problem (models/EXPERIMENTS.md, session 44).
 
     target/release/phyllo count --scale 1 --json [--model M] IMAGES... >COUNT_JSONL
-    models/.venv/bin/python scripts/zoom-vs-label.py DATASET COUNT_JSONL
+    models/.venv/bin/python scripts/experiments/zoom-vs-label.py DATASET COUNT_JSONL
 """
 
 import json
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "models"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "models"))
 
 from phyllo_train.augment import plant_zoom  # noqa: E402
 from phyllo_train.contract import load_contract  # noqa: E402

@@ -11,8 +11,8 @@ the contract's sigma 4, the same on centres moved onto their own blade
 (`train --center-sigma-min`). Not a model's score: a ceiling on what a
 blurred copy of each target can count (models/EXPERIMENTS.md, "Stage 8").
 
-    models/.venv/bin/python scripts/centre-target-oracle.py /work/data/calib-e40-mini 120
-    models/.venv/bin/python scripts/centre-target-oracle.py /work/data/calib-top-s700301 150 7,5,3
+    models/.venv/bin/python scripts/experiments/centre-target-oracle.py /work/data/calib-e40-mini 120
+    models/.venv/bin/python scripts/experiments/centre-target-oracle.py /work/data/calib-top-s700301 150 7,5,3
 
 The optional third argument lists NMS windows (default: the contract's 7).
 """
@@ -20,14 +20,14 @@ The optional third argument lists NMS windows (default: the contract's 7).
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "models"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "models"))
 
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from phyllo_train.contract import load_contract  # noqa: E402
 from phyllo_train.dataset import read_label, read_manifest  # noqa: E402
-from phyllo_train.postprocess import find_centers  # noqa: E402
+from phyllo_train.tools.postprocess import find_centers  # noqa: E402
 from phyllo_train.targets import crowding_sigmas, instance_centres  # noqa: E402
 
 

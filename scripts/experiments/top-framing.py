@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """How well a phyllo-gen dataset's top views frame their plants.
 
-    scripts/top-framing.py DATASET
+    scripts/experiments/top-framing.py DATASET
 
 Prints the number of top views, how many have a plant pixel (label class >= 1,
 stem and leaves) on the crop's border, and the plant's mean share of the

@@ -7,7 +7,7 @@ it), and counts centre peaks under two rules: every pixel equal to its max-pool 
 decoder's rule until session 48) and one peak per plateau (the Rust decoder's, now the Python
 one's too). Also the leaf counts of the whole decode, against the frames' visible leaves.
 
-    models/.venv/bin/python scripts/bf16-peaks.py MODEL.onnx DATASET [FRAMES]
+    models/.venv/bin/python scripts/experiments/bf16-peaks.py MODEL.onnx DATASET [FRAMES]
 
 Prints a Markdown table. From the repository root.
 """
@@ -21,12 +21,12 @@ import numpy as np
 import torch
 from torch.nn import functional as F
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "models"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "models"))
 from phyllo_train.contract import load_contract  # noqa: E402
 from phyllo_train.dataset import PanopticDataset  # noqa: E402
-from phyllo_train.from_onnx import architecture_of, load_folded  # noqa: E402
+from phyllo_train.tools.from_onnx import architecture_of, load_folded  # noqa: E402
 from phyllo_train.model import build_model  # noqa: E402
-from phyllo_train.postprocess import decode, find_centers  # noqa: E402
+from phyllo_train.tools.postprocess import decode, find_centers  # noqa: E402
 
 
 def plateau_peaks(center: torch.Tensor, threshold: float, kernel: int) -> int:

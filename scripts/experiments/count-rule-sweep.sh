@@ -4,11 +4,11 @@
 # Only a model with a `tip` output counts differently under the rules.
 # Calibrate on a synthetic set used neither for training nor for testing
 # (models/MODEL.md names it), never on the real dev images.
-# Usage: scripts/count-rule-sweep.sh MODEL "RULES" "TIP_THRESHOLDS" EVAL_ARGS...
-#   e.g. scripts/count-rule-sweep.sh models/phyllo.onnx "centres split tips" "0.3 0.5" \
+# Usage: scripts/experiments/count-rule-sweep.sh MODEL "RULES" "TIP_THRESHOLDS" EVAL_ARGS...
+#   e.g. scripts/experiments/count-rule-sweep.sh models/phyllo.onnx "centres split tips" "0.3 0.5" \
 #          --dataset /work/data/calib-s700001 --split all
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 model=${1:?usage: count-rule-sweep.sh MODEL RULES TIP_THRESHOLDS EVAL_ARGS...}
 rules=${2:?rules}
 thresholds=${3:?tip thresholds}

@@ -2,10 +2,10 @@
 # Counting each image at three scales and keeping the median or the largest
 # count (models/EXPERIMENTS.md, "Counting at three scales"): one row per set
 # and rule, exact / within ±1 / RMSE / bias.
-# Usage: scripts/scale-ensemble.sh [SET...]   (default: calib-s700001 calib-s700003-late frames crops)
+# Usage: scripts/experiments/scale-ensemble.sh [SET...]   (default: calib-s700001 calib-s700003-late frames crops)
 # Environment: MODEL [models/phyllo.onnx], DATA [/work/data], THREADS [2].
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 model=${MODEL:-$root/models/phyllo.onnx}
 data=${DATA:-/work/data}
 real=$root/../shared/data/unl-maize-dev

@@ -4,7 +4,7 @@ largest value within ±2 output pixels of each tip a person would click (phyllo_
 as quantiles and the shares at or above two thresholds. Whole frames, padded to a multiple of 32,
 one ONNX Runtime thread.
 
-    models/.venv/bin/python scripts/tip-peaks.py MODEL.onnx DATASET [FRAMES]
+    models/.venv/bin/python scripts/experiments/tip-peaks.py MODEL.onnx DATASET [FRAMES]
 """
 
 import sys
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import onnxruntime as ort
 from PIL import Image
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'models'))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / 'models'))
 from phyllo_train.dataset import read_manifest
 from phyllo_train.tip_truth import person_tips
 from phyllo_train.contract import load_contract

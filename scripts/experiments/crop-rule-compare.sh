@@ -3,9 +3,9 @@
 # the frame's aspect taken as frames) and the current one (x0.5), with the same
 # model, and prints exact / within one / RMSE / bias for each. Reproduces the
 # "crop scale fix" table in models/MODEL.md.
-# Usage: scripts/crop-rule-compare.sh [MODEL] [unl-maize-dev dir]
+# Usage: scripts/experiments/crop-rule-compare.sh [MODEL] [unl-maize-dev dir]
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 model=${1:-$root/models/phyllo.onnx}
 dev=${2:-$root/../shared/data/unl-maize-dev}
 bin=$root/target/release/phyllo
