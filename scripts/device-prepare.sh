@@ -43,7 +43,7 @@ if [ ! -e "$calib/manifest.jsonl" ]; then
     --full-frame --val-fraction 0 --preset btx623,pawaga,rtx430,sc301,tx3197,maize:1.7,maize-late:2 \
     --quiet --dead-remnants 0.5 --max-age 84 --max-leaves 16
 fi
-(cd models && "$py" -m phyllo_train.from_onnx "$init_onnx" --out "$root/.device/init.pt" \
+(cd models && "$py" -m phyllo_train.tools.from_onnx "$init_onnx" --out "$root/.device/init.pt" \
   --calibrate "$calib" --images 80 --batch "$batch" --crop "$crop")
 
 # The toy run: same script, same init.pt, this CPU, a few seconds of training.

@@ -17,7 +17,7 @@
 # the device call. By hand, from the repository root:
 #   cargo build --release -p phyllo-gen
 #   mkdir -p .device && strip -o .device/phyllo-gen target/release/phyllo-gen
-#   (cd models && .venv/bin/python -m phyllo_train.from_onnx phyllo.onnx \
+#   (cd models && .venv/bin/python -m phyllo_train.tools.from_onnx phyllo.onnx \
 #      --out ../.device/init.pt --calibrate DATA --batch 16 --crop 512)
 # (DATA: a training set, e.g. a few plants from phyllo-gen dataset; not a calibration set)
 # To go on from an earlier call's network instead of s10, give from_onnx that

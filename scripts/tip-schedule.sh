@@ -48,7 +48,7 @@ train() {
   local minutes=${1:?usage: tip-schedule.sh train MINUTES}
   mkdir -p "$run"
   if [ ! -f "$run/last.pt" ] && [ -f "$resume" ]; then
-    (cd "$root/models" && "$py" -m phyllo_train.resume_state unpack "$resume" --out "$run/last.pt")
+    (cd "$root/models" && "$py" -m phyllo_train.tools.resume_state unpack "$resume" --out "$run/last.pt")
   fi
   # A step is 8 crops: two processes of 4 on this CPU, or one batch of 8 on a lent GPU
   # (DEVICE=cuda; its loaders on the device machine's cores).
@@ -60,7 +60,7 @@ train() {
     --steps "$steps" --crop 384 "${hw[@]}" --photometric device \
     --tips --tip-rule person --center-sigma-min 2 --scale 0.6,1.7 \
     --val-limit 0 --ckpt-every 100 --keep-every 1000 --log-every 20 --seed 58 --stop-after "$minutes")
-  (cd "$root/models" && "$py" -m phyllo_train.resume_state pack "$run/last.pt" --out "$resume")
+  (cd "$root/models" && "$py" -m phyllo_train.tools.resume_state pack "$run/last.pt" --out "$resume")
 }
 
 score() {
@@ -93,7 +93,7 @@ score() {
       # shellcheck disable=SC2086 # EXTRA is a list of phyllo eval options
       [ -s "$per" ] || "$phyllo" eval --threads "${THREADS:-2}" --model "$onnx" --dataset "$data/$set" --split all \
         --count-rule "$rule" ${EXTRA:-} --per-image >"$per" 2>/dev/null
-      (cd "$root/models" && "$py" -m phyllo_train.truth_rules --dataset "$data/$set" "$per" --person) |
+      (cd "$root/models" && "$py" -m phyllo_train.tools.truth_rules --dataset "$data/$set" "$per" --person) |
         awk -F'|' -v ck="$name" -v rule="$rule${EXTRA:+ $EXTRA}" '/^\| (every visible leaf|tips a person)/ {
           sub(/ \(phyllo_train.tip_truth\)/, "", $2);
           printf "| %s | %s |%s|%s|%s|%s|%s|%s|%s|\n", ck, rule, $2, $3, $4, $5, $6, $7, $8 }'

@@ -55,7 +55,7 @@ pub struct EvalArgs {
     pub per_image: bool,
     /// Write one row per predicted leaf (what it is against the truth, its
     /// area, score and contact with other leaves) to this TSV, for scoring
-    /// post-processing rules offline (`python -m phyllo_train.segment_rules`).
+    /// post-processing rules offline (`python -m phyllo_train.experiments.segment_rules`).
     #[arg(long, value_name = "TSV", requires = "dataset")]
     pub segments: Option<PathBuf>,
     /// With a `tips_xy` column in the CSV: a marked tip belongs to the

@@ -2,7 +2,7 @@
 //! truth (found, a split-off piece, ...) beside what the post-processing
 //! could see of it (area, score, contact with neighbouring leaves), so that
 //! a rule for dropping or merging instances can be scored offline on the
-//! rows (`python -m phyllo_train.segment_rules`) without running the model
+//! rows (`python -m phyllo_train.experiments.segment_rules`) without running the model
 //! again.
 
 use std::collections::BTreeMap;

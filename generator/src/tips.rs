@@ -138,7 +138,7 @@ fn nearer(best: &mut Option<(f64, [f32; 2])>, centre: [f64; 2], to: [f64; 2]) {
 /// the image's edge counts as seen there, as annotators count cut tips), and
 /// large where something hides the tip. Instances whose tip does not project
 /// get no entry. Human annotators count leaves by the tips they can see; this
-/// lets a dataset's truth follow that rule (`python -m phyllo_train.truth_rules
+/// lets a dataset's truth follow that rule (`python -m phyllo_train.tools.truth_rules
 /// --tip-gaps`).
 pub fn tip_gaps(
     projected: &BTreeMap<u16, Option<[f32; 2]>>,

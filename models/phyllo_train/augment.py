@@ -214,7 +214,7 @@ class PhotometricDraw:
 
     Drawing apart from applying lets the same draw be applied here (NumPy and
     PIL, in a loader process) or on the training device, batched
-    (:mod:`phyllo_train.photometric_torch`), so both paths train on the same
+    (:mod:`phyllo_train.modes.photometric_torch`), so both paths train on the same
     random stream. Neutral values mean "op off".
     """
 

@@ -60,7 +60,7 @@ class Contract:
 
     @property
     def output_names_with_tip(self) -> tuple[str, str, str, str]:
-        """Output names of a model with the optional leaf-tip head (:mod:`phyllo_train.tips`)."""
+        """Output names of a model with the optional leaf-tip head (:mod:`phyllo_train.tools.tips`)."""
         return (*self.output_names, self.tip_name)
 
 

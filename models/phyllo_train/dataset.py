@@ -73,7 +73,7 @@ class PanopticDataset(Dataset):
     the same whichever worker loads it, and a resumed run sees the same data.
     With ``defer_photometric`` the image is the uint8 crop as rendered, and the
     target holds its ``photometric`` draw and ``plant`` mask for
-    :func:`phyllo_train.photometric_torch.finish_batch` to apply on the device.
+    :func:`phyllo_train.modes.photometric_torch.finish_batch` to apply on the device.
     """
 
     def __init__(self, root: str | Path, split: str | None = "train", aug: AugmentConfig | None = None,
@@ -178,7 +178,7 @@ class PanopticDataset(Dataset):
             "center_weight": torch.from_numpy(t.center_weight),
             "offset": torch.from_numpy(t.offset),
             "offset_weight": torch.from_numpy(t.offset_weight),
-            # Read by distillation (phyllo_train.distill): a teacher may not know top views.
+            # Read by distillation (phyllo_train.modes.distill): a teacher may not know top views.
             "top_view": torch.tensor(float(top_view)),
         }
         if self.with_tips:

@@ -229,7 +229,7 @@ class PhylloNet(nn.Module):
     def features(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Encoder and shared decoder: (stem features at stride 2, decoder features at stride 4).
 
-        Extra heads (the leaf-tip head of :mod:`phyllo_train.tips`) read these too.
+        Extra heads (the leaf-tip head of :mod:`phyllo_train.tools.tips`) read these too.
         """
         f2, f4, f8, f16, f32 = self.encode(x)
         d = self.aspp(f32)

@@ -56,7 +56,7 @@ class RunBatches(Sampler):
     epoch after epoch, each epoch shuffled by :func:`epoch_batches`.
 
     With ``world`` > 1 each step's batch is split into ``world`` equal slices and
-    this sampler yields slice ``rank`` (:mod:`phyllo_train.ddp`): together the
+    this sampler yields slice ``rank`` (:mod:`phyllo_train.modes.ddp`): together the
     processes see exactly the batches one process would.
     """
 

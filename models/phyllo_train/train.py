@@ -8,7 +8,7 @@ RUN_DIR gets ``last.pt`` (every ``--ckpt-every`` steps and at the end),
 Re-running the same command resumes from ``last.pt``. Export with
 ``python -m phyllo_train.export --checkpoint RUN_DIR/best.pt --out models/NAME.onnx``.
 
-``--tips`` trains the leaf-tip head (:mod:`phyllo_train.tips`) together with
+``--tips`` trains the leaf-tip head (:mod:`phyllo_train.tools.tips`) together with
 the network, every layer at once, and the export then has the contract's
 fourth output; ``--init`` still takes a plain network's checkpoint (the head
 starts fresh, or from ``--init-tip-head``, a ``tips train`` checkpoint).
@@ -33,13 +33,13 @@ from torch.utils.data import DataLoader
 
 from .augment import AugmentConfig, add_noise_args, with_noise_args
 from .contract import Contract, load_contract
-from . import ddp, distill
+from .modes import ddp, distill
 from .dataset import PanopticDataset, read_manifest
 from .ema import ModelEma
 from .losses import LossWeights, panoptic_loss, tip_focal_loss
 from .encoders import load_pretrained
 from .model import ENCODERS, TipNet, architecture_kwargs, build_model, count_parameters, grow_state, with_tip_head
-from .photometric_torch import finish_batch
+from .modes.photometric_torch import finish_batch
 from .run_batches import EpochIndexed, RunBatches
 from .targets import CENTER_POINTS
 from .tip_truth import TIP_RULES
@@ -323,7 +323,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--bf16", action="store_true",
                     help="run the network under bfloat16 autocast while training (losses, weights and "
                          "validation stay float32); faster on CPUs with AVX512-BF16 or AMX and on GPUs "
-                         "(python -m phyllo_train.train_speed measures it)")
+                         "(python -m phyllo_train.experiments.train_speed measures it)")
     ap.add_argument("--freeze-bn", action="store_true",
                     help="keep BatchNorm statistics fixed (eval mode) while training: for fine-tuning with "
                          "small batches, where batch statistics make training mode a different function")
@@ -333,7 +333,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--tip-weight", type=float, default=1.0, help="weight of the tip focal loss (with --tips)")
     ap.add_argument("--tip-width", type=int, default=32, help="tip head channels (with --tips)")
     ap.add_argument("--init-tip-head", type=Path, default=None,
-                    help="start the tip head from a `python -m phyllo_train.tips train` checkpoint (with --tips)")
+                    help="start the tip head from a `python -m phyllo_train.tools.tips train` checkpoint (with --tips)")
     ap.add_argument("--max-tip-gap", type=float, default=None,
                     help="with --tips: no tip target for leaves whose manifest leaf_tip_gaps exceeds this many "
                          "image pixels (hidden tips, which annotators do not mark)")
@@ -342,7 +342,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "click (phyllo_train.tip_truth: each seen tip, coinciding tips once)")
     ap.add_argument("--teacher", type=Path, default=None,
                     help="a checkpoint whose centre heatmap (and offsets, per --distill) replaces the side "
-                         "views' label targets (phyllo_train.distill says why); top views keep their labels")
+                         "views' label targets (phyllo_train.modes.distill says why); top views keep their labels")
     ap.add_argument("--distill", choices=distill.MODES, default="center",
                     help="which targets the --teacher replaces on side views")
     ap.add_argument("--distill-peak-weight", type=float, default=0.0,
@@ -353,7 +353,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--procs", type=int, default=1,
                     help="CPU processes sharing the run, each with --threads threads and a batch of --batch "
                          "(a step takes procs x batch); 2 with --threads 1 trained 1.24x the images per second "
-                         "of one process on 2 threads here (scripts/train-procs-speed.sh)")
+                         "of one process on 2 threads here (scripts/experiments/train-procs-speed.sh)")
     ap.add_argument("--workers", type=int, default=1, help="data loader worker processes")
     ap.add_argument("--preload", action="store_true",
                     help="decode every training image and label once, before the loader workers start "
@@ -379,7 +379,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, *, rank: int = 0, world: int = 1) -> int:
     """Train; returns a process exit code. ``rank``/``world``: this process of a
-    ``--procs`` run (:mod:`phyllo_train.ddp` calls it so)."""
+    ``--procs`` run (:mod:`phyllo_train.modes.ddp` calls it so)."""
     args = build_parser().parse_args(argv)
     if args.procs < 1:
         raise SystemExit(f"--procs must be at least 1, got {args.procs}")

@@ -4,7 +4,8 @@ import numpy as np
 import onnx
 import torch
 
-from phyllo_train import adapt_bn, export
+from phyllo_train import export
+from phyllo_train.experiments import adapt_bn
 from phyllo_train.model import build_model
 
 

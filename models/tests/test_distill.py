@@ -5,8 +5,9 @@ import json
 import onnx
 import torch
 
-from phyllo_train import distill, export, train
+from phyllo_train import export, train
 from phyllo_train.model import build_model
+from phyllo_train.modes import distill
 
 
 def test_teacher_replaces_side_view_targets_only(contract):

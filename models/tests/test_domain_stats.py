@@ -3,7 +3,7 @@
 import numpy as np
 from PIL import Image
 
-from phyllo_train import domain_stats
+from phyllo_train.experiments import domain_stats
 
 
 def test_roughness_sees_noise_and_green_over_red_sees_the_plant():

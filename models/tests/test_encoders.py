@@ -67,7 +67,7 @@ def test_encoder_learning_rate_is_scaled_and_the_decoder_is_not(contract):
 
 def test_from_onnx_rebuilds_the_pretrained_network(tmp_path, contract):
     """A later stage resumes from the committed export: the encoder's BatchNorms unfold too."""
-    from phyllo_train import from_onnx
+    from phyllo_train.tools import from_onnx
 
     model = build_model(contract.num_classes, seed=0, encoder="efficientnet-lite0")
     load_pretrained(model.encoder)
@@ -105,7 +105,7 @@ def test_freezing_the_encoder_start_fixes_its_weights_and_statistics(contract):
 def test_the_committed_stage_resumes_through_from_onnx(tmp_path):
     """models/phyllo-e40.onnx is where the pretrained-encoder model's next stage starts
     (EXPERIMENTS.md): it must rebuild into a training checkpoint that computes what it does."""
-    from phyllo_train import from_onnx
+    from phyllo_train.tools import from_onnx
 
     committed = Path(__file__).resolve().parents[1] / "phyllo-e40.onnx"
     assert committed.stat().st_size < 20_000_000

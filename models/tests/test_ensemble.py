@@ -5,7 +5,7 @@ import onnx
 import onnxruntime as ort
 import pytest
 
-from phyllo_train.ensemble import build_ensemble, main
+from phyllo_train.experiments.ensemble import build_ensemble, main
 from phyllo_train.export import export_onnx
 from phyllo_train.model import build_model, with_tip_head
 

@@ -1,8 +1,8 @@
-"""Count errors split by truth range, plant age and preset (phyllo_train.error_groups)."""
+"""Count errors split by truth range, plant age and preset (phyllo_train.experiments.error_groups)."""
 
 import json
 
-from phyllo_train.error_groups import groups, main
+from phyllo_train.experiments.error_groups import groups, main
 
 
 def _images():

@@ -3,7 +3,7 @@
 import torch
 
 from phyllo_train.export import export_onnx
-from phyllo_train.from_onnx import calibrate_bn, calibration_batches, load_folded, main, max_ort_difference
+from phyllo_train.tools.from_onnx import calibrate_bn, calibration_batches, load_folded, main, max_ort_difference
 from phyllo_train.model import build_model
 
 

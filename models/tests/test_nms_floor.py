@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from phyllo_train.nms_floor import leaf_centres, lost_to_window
+from phyllo_train.experiments.nms_floor import leaf_centres, lost_to_window
 
 
 def test_close_small_leaf_is_lost_to_a_wide_window_only(contract):

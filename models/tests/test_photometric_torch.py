@@ -12,7 +12,7 @@ from PIL import Image, ImageFilter
 from phyllo_train import train
 from phyllo_train.augment import AugmentConfig, PhotometricDraw, apply_photometric, draw_photometric
 from phyllo_train.dataset import PanopticDataset, normalise
-from phyllo_train.photometric_torch import apply_batch, finish_batch
+from phyllo_train.modes.photometric_torch import apply_batch, finish_batch
 from phyllo_train.train import collate
 
 

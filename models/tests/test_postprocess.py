@@ -3,7 +3,7 @@
 import numpy as np
 import torch
 
-from phyllo_train.postprocess import find_centers
+from phyllo_train.tools.postprocess import find_centers
 
 
 def rust_find_peaks(heat: np.ndarray, threshold: float, kernel: int, top_k: int) -> list[tuple[int, int]]:

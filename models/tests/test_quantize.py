@@ -7,7 +7,7 @@ import onnxruntime as ort
 from phyllo_train.encoders import load_pretrained
 from phyllo_train.export import export_onnx
 from phyllo_train.model import build_model
-from phyllo_train.quantize import calibration_inputs, quantize
+from phyllo_train.experiments.quantize import calibration_inputs, quantize
 
 
 def test_encoder_only_int8_keeps_metadata_and_outputs(tmp_path, contract, tiny_dataset):

@@ -1,6 +1,6 @@
 """The offline scorer of instance-dropping rules reads what `phyllo eval --segments` writes."""
 
-from phyllo_train.segment_rules import dropped_by, main, read_rows, score
+from phyllo_train.experiments.segment_rules import dropped_by, main, read_rows, score
 
 HEADER = "image\ttruth\tpredicted\tsegment\tkind\tarea\tscore\tmax_contact\ttotal_contact\tneighbour_area\n"
 

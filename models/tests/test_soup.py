@@ -5,7 +5,7 @@ import torch
 
 from phyllo_train.export import load_checkpoint_model
 from phyllo_train.model import build_model
-from phyllo_train.soup import main, soup_state
+from phyllo_train.experiments.soup import main, soup_state
 
 
 def test_soup_is_the_weighted_mean_and_keeps_counters(contract):

@@ -4,7 +4,7 @@ import numpy as np
 import torch
 
 from phyllo_train.losses import LossWeights, panoptic_loss, semantic_topk_ce
-from phyllo_train.postprocess import decode, find_centers, label_leaf_count
+from phyllo_train.tools.postprocess import decode, find_centers, label_leaf_count
 from phyllo_train.targets import crowding_sigmas, downsample_label, make_targets, saddle_pairs, SADDLE_REACH
 
 

@@ -13,10 +13,10 @@ from PIL import Image
 from phyllo_train.augment import AugmentConfig, augment
 from phyllo_train.dataset import PanopticDataset
 from phyllo_train.export import export_onnx
-from phyllo_train.from_onnx import main as from_onnx_main
+from phyllo_train.tools.from_onnx import main as from_onnx_main
 from phyllo_train.targets import tip_heatmap
 from phyllo_train.model import TipHead, TipNet
-from phyllo_train.tips import count_peaks, load_base, main, tip_focal_loss
+from phyllo_train.tools.tips import count_peaks, load_base, main, tip_focal_loss
 
 MODELS = Path(__file__).resolve().parent.parent
 
@@ -182,7 +182,7 @@ def test_export_of_a_three_output_model_is_unchanged(tmp_path, contract):
 
 
 def test_tip_matching_is_one_to_one_nearest_first(tmp_path):
-    from phyllo_train.tip_match import main as match_main, match_tips
+    from phyllo_train.experiments.tip_match import main as match_main, match_tips
 
     marked = np.array([[0.0, 0.0], [10.0, 0.0], [100.0, 100.0]])
     predicted = np.array([[4.0, 0.0], [11.0, 0.0], [300.0, 300.0]])
@@ -200,7 +200,7 @@ def test_tip_matching_is_one_to_one_nearest_first(tmp_path):
 
 
 def test_tip_matching_reads_a_datasets_leaf_tips(tmp_path, tiny_dataset):
-    from phyllo_train.tip_match import main as match_main, read_dataset_tips
+    from phyllo_train.experiments.tip_match import main as match_main, read_dataset_tips
 
     root = _with_tips(tiny_dataset, tmp_path)
     tips = read_dataset_tips(root, "val")
@@ -214,7 +214,7 @@ def test_tip_matching_reads_a_datasets_leaf_tips(tmp_path, tiny_dataset):
 def test_cached_features_are_the_live_ones_and_train_a_wider_head(tmp_path, tiny_dataset, contract):
     """`tips cache` stores exactly what the live loader feeds the head (to float16), it resumes, and a
     wider head trains on it and exports."""
-    from phyllo_train.tip_cache import FeatureCache
+    from phyllo_train.tools.tip_cache import FeatureCache
 
     root = _with_tips(tiny_dataset, tmp_path)
     cache = tmp_path / "cache"
@@ -258,7 +258,7 @@ def test_cached_features_are_the_live_ones_and_train_a_wider_head(tmp_path, tiny
 
 
 def test_count_rules_score_split_variants_from_one_run(tmp_path):
-    from phyllo_train.count_rules import Rule, count, main as rules_main
+    from phyllo_train.experiments.count_rules import Rule, count, main as rules_main
 
     leaf = lambda i, area: {"id": i, "class_name": "leaf", "area": area}  # noqa: E731
     rec = {"file": "/x/a.png", "instances": [leaf(1, 50), leaf(2, 5000), {"id": 3, "class_name": "panicle", "area": 9}],

@@ -149,7 +149,7 @@ def test_bf16_autocast_trains_exports_float32_and_says_so(tiny_dataset, tmp_path
 
 
 def test_train_speed_prints_its_table(tiny_dataset, capsys):
-    from phyllo_train import train_speed
+    from phyllo_train.experiments import train_speed
     train_speed.main(["--data", str(tiny_dataset), "--crop", "64", "--batch", "2", "--threads", "1",
                       "--samples", "2", "--steps", "1"])
     out = capsys.readouterr().out
@@ -185,7 +185,7 @@ def test_cpu_bf16_support_is_read_from_the_cpu_flags():
 def test_a_paused_schedule_goes_on_from_its_packed_resume_point(tiny_dataset, tmp_path):
     """--stop-after pauses without bending the schedule (resumed, the run is the uninterrupted one
     exactly); the packed resume point keeps weights exactly and the moments to bfloat16."""
-    from phyllo_train import resume_state
+    from phyllo_train.tools import resume_state
 
     def common(out):
         return ["--data", str(tiny_dataset), "--out", str(out), "--crop", "64", "--batch", "2", "--workers", "0",

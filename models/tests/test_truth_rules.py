@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from phyllo_train.truth_rules import main, metrics, parse_per_image
+from phyllo_train.tools.truth_rules import main, metrics, parse_per_image
 
 
 def test_parse_and_metrics():
