@@ -67,6 +67,19 @@ pub fn decode_rgb(name: &Path, bytes: &[u8], limits: &DecodeLimits) -> Result<Rg
         .into_dimensions()
         .map_err(|e| InferenceError::image(name, format!("cannot read {format:?} header: {e}")))?;
     check_dimensions(name, w, h, limits)?;
+    if format == ImageFormat::Jpeg
+        && (bytes.len() as u64) < u64::from(w) * u64::from(h) / MIN_JPEG_PIXELS_PER_BYTE
+    {
+        return Err(InferenceError::image(
+            name,
+            format!(
+                "corrupt Jpeg: its header claims {w}x{h}, which {} bytes cannot hold (a camera frame that size \
+                 takes at least {} bytes)",
+                bytes.len(),
+                u64::from(w) * u64::from(h) / MIN_JPEG_PIXELS_PER_BYTE
+            ),
+        ));
+    }
 
     let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
     let mut lim = image::Limits::default();
@@ -82,9 +95,52 @@ pub fn decode_rgb(name: &Path, bytes: &[u8], limits: &DecodeLimits) -> Result<Rg
     // A camera or a photo tool may store the frame on its side with an EXIF
     // orientation tag; the plant must stand upright before it is counted.
     let orientation = decoder.orientation().unwrap_or(Orientation::NoTransforms);
-    let mut img = DynamicImage::from_decoder(decoder).map_err(corrupt)?;
+    let img = DynamicImage::from_decoder(decoder).map_err(corrupt)?;
+    let rgb = img.into_rgb8();
+    if format == ImageFormat::Jpeg {
+        check_jpeg_fill(name, &rgb)?;
+    }
+    let mut img = DynamicImage::ImageRgb8(rgb);
     img.apply_orientation(orientation);
     Ok(img.into_rgb8())
+}
+
+/// A JPEG of a camera frame holds at least one byte per this many pixels:
+/// the chamber's frames hold one per 19 or fewer (the real dev sets), a
+/// flat grey frame about one per 250. Fewer bytes than this for the size
+/// the header claims is a corrupt header or a file cut short.
+const MIN_JPEG_PIXELS_PER_BYTE: u64 = 100;
+
+/// Refuses a JPEG whose data end before its frame does. A decoder that
+/// runs out of scan data ("premature end of data") fills the rest of the
+/// frame with copies of its last block and reports success; that fill
+/// repeats exactly every 16 rows and every 16 columns. A camera frame never
+/// repeats itself exactly (sensor noise): none of the real dev sets' frames
+/// has a single bottom row equal to the one 16 above. A flat band (a frame
+/// with the lights off, a drawn test image) is left alone: it repeats too,
+/// but so does each row the one just above it.
+fn check_jpeg_fill(name: &Path, img: &RgbImage) -> Result<(), InferenceError> {
+    const MCU: u32 = 16;
+    let (w, h) = img.dimensions();
+    let row_bytes = w as usize * 3;
+    let row = |y: u32| &img.as_raw()[y as usize * row_bytes..(y as usize + 1) * row_bytes];
+    let repeats = |period: u32| {
+        (period..h)
+            .rev()
+            .take_while(|&y| row(y) == row(y - period))
+            .count() as u32
+    };
+    let filled = repeats(MCU);
+    if filled >= (h / 8).max(64) && repeats(1) < filled {
+        return Err(InferenceError::image(
+            name,
+            format!(
+                "corrupt or truncated Jpeg: its last {filled} of {h} rows repeat one block, the fill a decoder \
+                 leaves where the data end early (premature end of data)"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Reads and decodes an image file as [`decode_rgb`] does, with default limits.
@@ -190,6 +246,50 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("too small"), "{e}");
+    }
+
+    /// A JPEG cut short with its end marker kept, and one whose header claims
+    /// a frame far larger than its data, decode "successfully" into a flat
+    /// fill: both are refused, not counted as an empty chamber (issue 57
+    /// item 2). A frame flat from edge to edge is still a frame.
+    #[test]
+    fn a_jpeg_whose_data_end_early_or_whose_header_lies_is_refused() {
+        let lim = DecodeLimits::default();
+        let noise = image::RgbImage::from_fn(256, 192, |x, y| {
+            let v = (x.wrapping_mul(7919) ^ y.wrapping_mul(104_729)).wrapping_mul(2_654_435_761) >> 24;
+            image::Rgb([v as u8, (v >> 1) as u8, 255 - v as u8])
+        });
+        let mut jpeg = Vec::new();
+        image::DynamicImage::ImageRgb8(noise)
+            .write_to(&mut Cursor::new(&mut jpeg), ImageFormat::Jpeg)
+            .unwrap();
+        assert!(decode_rgb(Path::new("whole.jpg"), &jpeg, &lim).is_ok());
+        let mut cut = jpeg[..jpeg.len() / 2].to_vec();
+        cut.extend_from_slice(&[0xFF, 0xD9]);
+        let e = decode_rgb(Path::new("cut.jpg"), &cut, &lim)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(
+            e.contains("cut.jpg") && e.contains("premature end of data"),
+            "{e}"
+        );
+        let sof = jpeg
+            .windows(2)
+            .position(|w| w == [0xFF, 0xC0])
+            .expect("a baseline frame header");
+        let mut big = jpeg.clone();
+        big[sof + 5..sof + 9].copy_from_slice(&[0x18, 0xB0, 0x18, 0xB0]); // 6320 x 6320
+        let e = decode_rgb(Path::new("big.jpg"), &big, &lim)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(e.contains("big.jpg") && e.contains("claims 6320x6320"), "{e}");
+        let mut flat = Vec::new();
+        image::DynamicImage::new_rgb8(64, 64)
+            .write_to(&mut Cursor::new(&mut flat), ImageFormat::Jpeg)
+            .unwrap();
+        assert!(decode_rgb(Path::new("dark.jpg"), &flat, &lim).is_ok());
     }
 
     /// A little-endian TIFF header with one IFD entry: Orientation = `value`.
