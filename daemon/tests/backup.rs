@@ -9,7 +9,6 @@
 
 mod common;
 
-use std::process::Command;
 use std::time::Duration;
 
 use common::*;
@@ -109,11 +108,7 @@ fn snapshot_while_counting_then_restore_recovers_every_count() {
     );
 
     // One service per database, and no restore under a running one.
-    let second = Command::new(BIN)
-        .args(["serve", "-c"])
-        .arg(&site.cfg)
-        .output()
-        .unwrap();
+    let second = site.phyllo(&["serve"]);
     let why = String::from_utf8_lossy(&second.stderr);
     assert!(!second.status.success(), "a second service started");
     assert!(
@@ -204,23 +199,10 @@ fn a_snapshot_that_would_fill_its_disk_is_refused() {
     let site = Site::new("", "");
     let small = site.tmp.path().join("small");
     std::fs::create_dir_all(&small).unwrap();
-    let mounted = Command::new("mount")
-        .args(["-t", "tmpfs", "-o", "size=64M", "tmpfs"])
-        .arg(&small)
-        .stderr(std::process::Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !mounted {
+    let Some(_unmount) = mount_tmpfs(&small, "64M") else {
         eprintln!("SKIPPED: cannot mount a tmpfs (not root, or no mount in this sandbox)");
         return;
-    }
-    struct Unmount(std::path::PathBuf);
-    impl Drop for Unmount {
-        fn drop(&mut self) {
-            let _ = Command::new("umount").arg("-l").arg(&self.0).status();
-        }
-    }
-    let _unmount = Unmount(small.clone());
+    };
     let mut cfg = std::fs::read_to_string(&site.cfg).unwrap();
     cfg += &format!("[backup]\ndir = {:?}\n", small.join("backups"));
     std::fs::write(&site.cfg, cfg).unwrap();

@@ -628,11 +628,7 @@ fn serve_refused(cfg_text: &str) -> String {
         cfg_text.replace("$DIR", site.tmp.path().to_str().unwrap()),
     )
     .unwrap();
-    let out = std::process::Command::new(BIN)
-        .args(["serve", "-c"])
-        .arg(&site.cfg)
-        .output()
-        .unwrap();
+    let out = site.phyllo(&["serve"]);
     let err = String::from_utf8_lossy(&out.stderr).into_owned();
     assert_eq!(out.status.code(), Some(2), "must refuse to start: {err}");
     assert!(!site.db.exists(), "nothing written when the start is refused");

@@ -15,7 +15,7 @@
 mod common;
 
 use std::collections::BTreeMap;
-use std::io::{BufRead, BufReader, Write};
+use std::io::Write;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -231,19 +231,7 @@ fn readers_do_not_block_writers() {
     let mut d = site.serve();
     site.wait_running(&mut d);
 
-    let mut tail = Command::new(BIN)
-        .args(["tail", "--json", "-c"])
-        .arg(&site.cfg)
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let tail_out = tail.stdout.take().unwrap();
-    let tail_reader = std::thread::spawn(move || {
-        BufReader::new(tail_out)
-            .lines()
-            .map_while(Result::ok)
-            .collect::<Vec<String>>()
-    });
+    let tail = spawn_tail(&site.cfg, &["--json"]);
 
     // A reader that opens a transaction and never ends it.
     let held = phyllo::store::Store::open_read_only(&site.db).unwrap();
@@ -327,9 +315,7 @@ fn readers_do_not_block_writers() {
     std::thread::sleep(Duration::from_millis(1500)); // tail polls
     let st = d.term();
     assert!(st.success());
-    signal(tail.id(), "TERM");
-    tail.wait().unwrap();
-    let lines = tail_reader.join().unwrap();
+    let (_, lines) = tail.stop();
     let counts = lines
         .iter()
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
@@ -352,25 +338,12 @@ fn readers_do_not_block_writers() {
 fn disk_full_on_state_dir_then_recovers() {
     let n: usize = env_or("PHYLLO_FAULT_IMAGES", 30);
     let site = Site::new("workers = 1\nintra_threads = 1\n", "");
-    let mounted = Command::new("mount")
-        .args(["-t", "tmpfs", "-o", "size=2M", "tmpfs"])
-        .arg(&site.state)
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !mounted {
+    let Some(_unmount) = mount_tmpfs(&site.state, "2M") else {
         eprintln!(
             "SKIPPED: cannot mount a tmpfs on the state directory (not root, or no mount in this sandbox)"
         );
         return;
-    }
-    struct Unmount(std::path::PathBuf);
-    impl Drop for Unmount {
-        fn drop(&mut self) {
-            let _ = Command::new("umount").arg("-l").arg(&self.0).status();
-        }
-    }
-    let _unmount = Unmount(site.state.clone());
+    };
 
     let mut d = site.serve();
     site.wait_running(&mut d);

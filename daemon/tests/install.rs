@@ -2,19 +2,22 @@
 //! counts a sample from another directory with an empty HOME and no
 //! environment, with the model and the ONNX Runtime library it installed.
 
-use std::path::Path;
+mod common;
+
 use std::process::Command;
+
+use common::{repo_root, BIN};
 
 #[test]
 fn installed_into_a_prefix_it_counts_from_anywhere() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let root = repo_root();
     let tmp = tempfile::tempdir().unwrap();
     let prefix = tmp.path().join("opt/phyllo");
     let out = Command::new("bash")
         .arg(root.join("scripts/install.sh"))
         .arg("--prefix")
         .arg(&prefix)
-        .args(["--bin", env!("CARGO_BIN_EXE_phyllo"), "--no-systemd"])
+        .args(["--bin", BIN, "--no-systemd"])
         .output()
         .unwrap();
     let said = String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);

@@ -2,9 +2,13 @@
 //! over a real datagram socket — READY, STATUS, WATCHDOG pings, STOPPING on
 //! SIGTERM — and a clean exit. Uses the shipped model and ONNX Runtime.
 
+mod common;
+
 use std::os::unix::net::UnixDatagram;
 use std::process::Command;
 use std::time::{Duration, Instant};
+
+use common::{signal, write_config, BIN};
 
 #[test]
 fn serve_speaks_sd_notify_and_stops_on_sigterm() {
@@ -14,16 +18,13 @@ fn serve_speaks_sd_notify_and_stops_on_sigterm() {
     sock.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
     let cfg = dir.path().join("phyllo.toml");
     std::fs::create_dir_all(dir.path().join("drop")).unwrap();
-    std::fs::write(
+    write_config(
         &cfg,
-        format!(
-            "drop_dir = {:?}\ndatabase = {:?}\n",
-            dir.path().join("drop"),
-            dir.path().join("db/phyllo.sqlite")
-        ),
-    )
-    .unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_phyllo"))
+        &dir.path().join("drop"),
+        &dir.path().join("db/phyllo.sqlite"),
+        "",
+    );
+    let mut child = Command::new(BIN)
         .args(["serve", "-c"])
         .arg(&cfg)
         .env("NOTIFY_SOCKET", &sock_path)
@@ -47,11 +48,7 @@ fn serve_speaks_sd_notify_and_stops_on_sigterm() {
     recv_until(&mut seen, "READY=1", Duration::from_secs(120));
     recv_until(&mut seen, "WATCHDOG=1", Duration::from_secs(5));
     assert!(seen.iter().any(|m| m.contains("STATUS=")), "{seen:?}");
-    assert!(Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap()
-        .success());
+    signal(child.id(), "TERM");
     recv_until(&mut seen, "STOPPING=1", Duration::from_secs(10));
     let status = child.wait().unwrap();
     assert!(status.success(), "exit status after SIGTERM: {status}");

@@ -3,68 +3,37 @@
 //! count from the file's text, so these tests need no ONNX Runtime; the e2e
 //! tests in `tests/` run the real model.
 
+mod common;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use common::{config_text, flat_name, q, wait_for, SlowCounter, TextCounter};
 use phyllo::config::Config;
-use phyllo::pipeline::counting::{CountError, LeafCounter};
-use phyllo::store::{CountRecord, Store};
+use phyllo::pipeline::counting::LeafCounter;
+use phyllo::store::Store;
 use tokio::sync::watch;
 
-/// Reads "leaves=N ... END" files. Anything else (a partial file included) is an
-/// undecodable image, which the service must record as failed.
-struct TextCounter;
-
-impl LeafCounter for TextCounter {
-    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError> {
-        let text = String::from_utf8_lossy(bytes);
-        let n = text
-            .strip_prefix("leaves=")
-            .and_then(|r| r.split_whitespace().next())
-            .and_then(|n| n.parse::<u32>().ok())
-            .filter(|_| text.trim_end().ends_with("END"));
-        match n {
-            Some(n) => Ok(CountRecord {
-                leaf_count: n,
-                instances: serde_json::json!([]),
-                timing: serde_json::json!({"total": 1.0}),
-                ms_total: 1.0,
-                model_id: "text-counter".into(),
-                settings: serde_json::Value::Null,
-            }),
-            None => Err(CountError {
-                message: format!("image {}: not a complete image", name.display()),
-                retry: false,
-            }),
-        }
-    }
-
-    fn model_id(&self) -> String {
-        "text-counter".into()
-    }
-}
-
 fn config(dir: &Path) -> Config {
-    let text = format!(
-        "drop_dir = {:?}\ndatabase = {:?}\n[watch]\nstable_secs = 1.5\nsettle_ms = 100\npoll_ms = 50\nrescan_secs = 3\n",
-        dir.join("drop"),
-        dir.join("state/phyllo.sqlite")
+    let text = config_text(
+        &dir.join("drop"),
+        &dir.join("state/phyllo.sqlite"),
+        "[watch]\nstable_secs = 1.5\nsettle_ms = 100\npoll_ms = 50\nrescan_secs = 3\n",
     );
     Config::parse(&text).unwrap()
 }
 
+/// What [`TextCounter`] counts as `n` leaves.
 fn body(n: u32) -> String {
-    format!("leaves={n} {}END\n", "x".repeat(2000))
+    TextCounter::body(n)
 }
 
+/// A flat-layout name for view `angle`, taken `angle / 36` seconds past 10:00.
 fn name(plant: &str, day: u32, angle: u32) -> String {
-    format!(
-        "{plant}_2018-04-{day:02}_10-00-{:02}_Vis_SV_{angle}.png",
-        angle / 36
-    )
+    flat_name(plant, day, angle / 36, angle)
 }
 
 struct Running {
@@ -72,7 +41,13 @@ struct Running {
     handle: std::thread::JoinHandle<anyhow::Result<()>>,
 }
 
+/// The service in-process with [`TextCounter`].
 fn start(cfg: Config) -> Running {
+    start_with(cfg, Arc::new(TextCounter))
+}
+
+/// The service in-process with `counter`, on a runtime of its own.
+fn start_with(cfg: Config, counter: Arc<dyn LeafCounter>) -> Running {
     let (stop, rx) = watch::channel(false);
     let handle = std::thread::spawn(move || {
         let rt = tokio::runtime::Builder::new_multi_thread()
@@ -80,7 +55,7 @@ fn start(cfg: Config) -> Running {
             .enable_all()
             .build()
             .unwrap();
-        rt.block_on(phyllo::pipeline::service::run(cfg, Arc::new(TextCounter), rx))
+        rt.block_on(phyllo::pipeline::service::run(cfg, counter, rx))
     });
     Running { stop, handle }
 }
@@ -89,21 +64,6 @@ impl Running {
     fn stop(self) {
         self.stop.send(true).unwrap();
         self.handle.join().unwrap().unwrap();
-    }
-}
-
-fn query(db: &Path, sql: &str) -> i64 {
-    let Ok(s) = Store::open_read_only(db) else {
-        return -1;
-    };
-    s.conn().query_row(sql, [], |r| r.get(0)).unwrap_or(-1)
-}
-
-fn wait_for(what: &str, timeout: Duration, mut cond: impl FnMut() -> bool) {
-    let t0 = Instant::now();
-    while !cond() {
-        assert!(t0.elapsed() < timeout, "timed out waiting for {what}");
-        std::thread::sleep(Duration::from_millis(50));
     }
 }
 
@@ -132,7 +92,7 @@ fn serve_counts_every_complete_image_exactly_once() {
 
     let svc = start(cfg.clone());
     wait_for("start-up scan", Duration::from_secs(20), || {
-        query(&db, "SELECT COUNT(*) FROM observations") == 1
+        q(&db, "SELECT COUNT(*) FROM observations") == 1
     });
 
     // Close-after-write.
@@ -165,31 +125,25 @@ fn serve_counts_every_complete_image_exactly_once() {
     writer.join().unwrap();
 
     wait_for("all images", Duration::from_secs(30), || {
-        query(&db, "SELECT COUNT(*) FROM images") == 9
+        q(&db, "SELECT COUNT(*) FROM images") == 9
     });
     std::thread::sleep(Duration::from_millis(500));
     assert_eq!(
-        query(&db, "SELECT COUNT(*) FROM observations"),
+        q(&db, "SELECT COUNT(*) FROM observations"),
         6,
         "six distinct complete images"
     );
-    assert_eq!(
-        query(&db, "SELECT COUNT(*) FROM images WHERE state = 'duplicate'"),
-        1
-    );
-    assert_eq!(
-        query(&db, "SELECT COUNT(*) FROM images WHERE state = 'failed'"),
-        2
-    );
+    assert_eq!(q(&db, "SELECT COUNT(*) FROM images WHERE state = 'duplicate'"), 1);
+    assert_eq!(q(&db, "SELECT COUNT(*) FROM images WHERE state = 'failed'"), 2);
     // The slow file was never taken while partial.
     assert_eq!(
-        query(
+        q(
             &db,
             "SELECT COUNT(*) FROM images WHERE path LIKE 'P1_2018-04-03%'"
         ),
         1
     );
-    assert_eq!(query(&db, "SELECT leaf_count FROM observations o JOIN images i ON i.id = o.image_id WHERE i.path LIKE 'P1_2018-04-03%'"), 10);
+    assert_eq!(q(&db, "SELECT leaf_count FROM observations o JOIN images i ON i.id = o.image_id WHERE i.path LIKE 'P1_2018-04-03%'"), 10);
     let store = Store::open_read_only(&db).unwrap();
     let failures = store.recent_failures(10).unwrap();
     let holiday = failures
@@ -215,7 +169,7 @@ fn serve_counts_every_complete_image_exactly_once() {
     // A changed file is a new version.
     std::fs::write(drop.join(name("P1", 4, 0)), body(12)).unwrap();
     wait_for("new version", Duration::from_secs(20), || {
-        query(&db, "SELECT MAX(version) FROM images") == 2
+        q(&db, "SELECT MAX(version) FROM images") == 2
     });
     svc.stop();
     assert_eq!(
@@ -227,12 +181,12 @@ fn serve_counts_every_complete_image_exactly_once() {
     std::fs::write(drop.join(name("P1", 5, 0)), body(13)).unwrap();
     let svc = start(cfg.clone());
     wait_for("file added while down", Duration::from_secs(20), || {
-        query(&db, "SELECT COUNT(*) FROM observations") == 8
+        q(&db, "SELECT COUNT(*) FROM observations") == 8
     });
     std::thread::sleep(Duration::from_millis(500));
-    assert_eq!(query(&db, "SELECT COUNT(*) FROM observations"), 8);
+    assert_eq!(q(&db, "SELECT COUNT(*) FROM observations"), 8);
     assert_eq!(
-        query(&db, "SELECT SUM(attempts) FROM images WHERE state = 'failed'"),
+        q(&db, "SELECT SUM(attempts) FROM images WHERE state = 'failed'"),
         2,
         "bad files not retried"
     );
@@ -243,7 +197,7 @@ fn serve_counts_every_complete_image_exactly_once() {
     std::thread::sleep(Duration::from_millis(200));
     std::fs::write(drop.join(name("P4", 1, 0)), body(5)).unwrap();
     wait_for("image in recreated drop dir", Duration::from_secs(30), || {
-        query(&db, "SELECT COUNT(*) FROM plants WHERE name = 'P4'") == 1
+        q(&db, "SELECT COUNT(*) FROM plants WHERE name = 'P4'") == 1
     });
     svc.stop();
 
@@ -270,23 +224,9 @@ fn missing_drop_dir_is_waited_for() {
     std::fs::create_dir_all(&cfg.drop_dir).unwrap();
     std::fs::write(cfg.drop_dir.join(name("P9", 1, 0)), body(4)).unwrap();
     wait_for("image in late drop dir", Duration::from_secs(30), || {
-        query(&db, "SELECT COUNT(*) FROM observations") == 1
+        q(&db, "SELECT COUNT(*) FROM observations") == 1
     });
     svc.stop();
-}
-
-/// Counts like [`TextCounter`] but takes its time, like a real model on a slow CPU.
-struct SlowCounter(Duration);
-
-impl LeafCounter for SlowCounter {
-    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError> {
-        std::thread::sleep(self.0);
-        TextCounter.count(name, bytes)
-    }
-
-    fn model_id(&self) -> String {
-        "slow-text-counter".into()
-    }
 }
 
 #[test]
@@ -301,26 +241,11 @@ fn bounded_queue_and_sigterm_hand_back() {
     for i in 0..n {
         std::fs::write(cfg.drop_dir.join(name("Q", 1 + i, 0)), body(5 + i)).unwrap();
     }
-    let run = |cfg: Config| {
-        let (stop, rx) = watch::channel(false);
-        let handle = std::thread::spawn(move || {
-            let rt = tokio::runtime::Builder::new_multi_thread()
-                .worker_threads(2)
-                .enable_all()
-                .build()
-                .unwrap();
-            rt.block_on(phyllo::pipeline::service::run(
-                cfg,
-                Arc::new(SlowCounter(Duration::from_millis(250))),
-                rx,
-            ))
-        });
-        Running { stop, handle }
-    };
+    let run = |cfg: Config| start_with(cfg, Arc::new(SlowCounter(Duration::from_millis(250))));
     let svc = run(cfg.clone());
     // While the single worker is busy, the queue never holds more than its capacity.
     wait_for("first count", Duration::from_secs(20), || {
-        query(&db, "SELECT COUNT(*) FROM observations") >= 1
+        q(&db, "SELECT COUNT(*) FROM observations") >= 1
     });
     let t0 = Instant::now();
     let mut max_queued = 0;
@@ -334,10 +259,10 @@ fn bounded_queue_and_sigterm_hand_back() {
     }
     // SIGTERM equivalent mid-run: the image in hand is finished, the queued ones are handed back.
     svc.stop();
-    let done = query(&db, "SELECT COUNT(*) FROM observations");
+    let done = q(&db, "SELECT COUNT(*) FROM observations");
     assert!(done > 0 && done < n as i64, "stopped mid-run: {done} of {n}");
     assert_eq!(
-        query(&db, "SELECT COUNT(*) FROM images"),
+        q(&db, "SELECT COUNT(*) FROM images"),
         done,
         "nothing half-recorded"
     );
@@ -345,11 +270,11 @@ fn bounded_queue_and_sigterm_hand_back() {
     // After a restart every image is counted exactly once.
     let svc = run(cfg.clone());
     wait_for("the rest after restart", Duration::from_secs(60), || {
-        query(&db, "SELECT COUNT(*) FROM observations") == n as i64
+        q(&db, "SELECT COUNT(*) FROM observations") == n as i64
     });
     svc.stop();
-    assert_eq!(query(&db, "SELECT COUNT(*) FROM images"), n as i64);
-    assert_eq!(query(&db, "SELECT COUNT(DISTINCT path) FROM images"), n as i64);
+    assert_eq!(q(&db, "SELECT COUNT(*) FROM images"), n as i64);
+    assert_eq!(q(&db, "SELECT COUNT(DISTINCT path) FROM images"), n as i64);
 }
 
 /// `[feed] keep_days`: the running service deletes old feed entries (at start
@@ -366,10 +291,10 @@ fn old_feed_entries_are_pruned_and_counts_kept() {
     std::fs::write(drop.join(name("P1", 2, 0)), body(9)).unwrap();
     let svc = start(cfg.clone());
     wait_for("two counts", Duration::from_secs(20), || {
-        query(&db, "SELECT COUNT(*) FROM observations") == 2
+        q(&db, "SELECT COUNT(*) FROM observations") == 2
     });
     svc.stop();
-    let entries = query(&db, "SELECT COUNT(*) FROM feed");
+    let entries = q(&db, "SELECT COUNT(*) FROM feed");
     assert!(entries >= 2, "feed has {entries} entries");
     // Written two days ago, as far as the feed knows.
     let two_days_ago = (chrono::Utc::now() - chrono::Duration::days(2))
@@ -386,18 +311,15 @@ fn old_feed_entries_are_pruned_and_counts_kept() {
         "the third count, and the old feed gone",
         Duration::from_secs(20),
         || {
-            query(&db, "SELECT COUNT(*) FROM observations") == 3
-                && query(
+            q(&db, "SELECT COUNT(*) FROM observations") == 3
+                && q(
                     &db,
                     &format!("SELECT COUNT(*) FROM feed WHERE at <= '{two_days_ago}'"),
                 ) == 0
         },
     );
     svc.stop();
-    assert!(query(&db, "SELECT COUNT(*) FROM feed WHERE kind = 'count'") >= 1);
-    assert_eq!(
-        query(&db, "SELECT COUNT(*) FROM images WHERE state = 'counted'"),
-        3
-    );
-    assert_eq!(query(&db, "SELECT sessions FROM plants WHERE name = 'P1'"), 3);
+    assert!(q(&db, "SELECT COUNT(*) FROM feed WHERE kind = 'count'") >= 1);
+    assert_eq!(q(&db, "SELECT COUNT(*) FROM images WHERE state = 'counted'"), 3);
+    assert_eq!(q(&db, "SELECT sessions FROM plants WHERE name = 'P1'"), 3);
 }

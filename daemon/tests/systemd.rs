@@ -2,8 +2,12 @@
 //! hardening keeps `systemd-analyze security` exposure at or below 2.0.
 //! Skipped, with the reason printed, where systemd-analyze is not installed.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+use common::{repo_root, BIN};
 
 const UNITS: [&str; 7] = [
     "phyllo.service",
@@ -32,12 +36,12 @@ fn systemd_analyze() -> Option<PathBuf> {
 /// Copies the units, pointing ExecStart at the binary cargo just built (verify
 /// checks that the command exists and is executable).
 fn units_in(dir: &Path) -> Vec<PathBuf> {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../systemd");
+    let src = repo_root().join("systemd");
     UNITS
         .iter()
         .map(|u| {
             let text = std::fs::read_to_string(src.join(u)).unwrap();
-            let text = text.replace("/usr/local/bin/phyllo", env!("CARGO_BIN_EXE_phyllo"));
+            let text = text.replace("/usr/local/bin/phyllo", BIN);
             let out = dir.join(u);
             std::fs::write(&out, text).unwrap();
             out

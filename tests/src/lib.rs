@@ -1,8 +1,13 @@
 //! Helpers shared by phyllo's end-to-end tests: the built binaries, the
-//! shipped models and the shared development data.
+//! shipped models and the shared development data; running the daemon's
+//! commands ([`run`]).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+
+pub mod run;
+
+pub use run::{env_or, signal, spawn_tail, write_config, Tail};
 
 /// Root of the repository.
 pub fn repo_root() -> PathBuf {

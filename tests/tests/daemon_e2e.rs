@@ -13,12 +13,13 @@
 //! frames that exist), so reruns only pay for counting.
 
 use std::collections::{BTreeMap, HashSet};
-use std::io::{BufRead, BufReader, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use chrono_free::days_between;
+use phyllo_e2e::{env_or, signal, spawn_tail, write_config};
 
 /// Date arithmetic on `YYYY-MM-DD` without a date crate.
 mod chrono_free {
@@ -45,13 +46,6 @@ mod chrono_free {
     }
 }
 
-fn env_or(name: &str, default: u32) -> u32 {
-    std::env::var(name)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
 /// The target directory and the two binaries, (re)built if stale.
 fn binaries() -> (PathBuf, PathBuf, PathBuf) {
     let phyllo = phyllo_e2e::binary("phyllo", "phyllo");
@@ -72,14 +66,6 @@ fn shuffle<T>(v: &mut [T], mut seed: u64) {
         seed ^= seed << 17;
         v.swap(i, (seed % (i as u64 + 1)) as usize);
     }
-}
-
-fn kill_term(child: &Child) {
-    assert!(Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap()
-        .success());
 }
 
 /// Emergence-date errors (days, predicted minus truth) of the exported
@@ -175,15 +161,12 @@ fn generate_sequence(gen: &Path, dir: &Path, plants: u32, days: u32, seed: u32, 
 fn fresh_store(settings: &str) -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("phyllo.toml");
-    std::fs::write(
+    write_config(
         &cfg,
-        format!(
-            "drop_dir = {:?}\ndatabase = {:?}\n{settings}",
-            dir.path().join("drop"),
-            dir.path().join("db.sqlite")
-        ),
-    )
-    .unwrap();
+        &dir.path().join("drop"),
+        &dir.path().join("db.sqlite"),
+        settings,
+    );
     (dir, cfg)
 }
 
@@ -285,15 +268,12 @@ fn daemon_counts_a_generated_sequence() {
     let drop_dir = dir.path().join("drop");
     std::fs::create_dir_all(&drop_dir).unwrap();
     let cfg = dir.path().join("phyllo.toml");
-    std::fs::write(
+    write_config(
         &cfg,
-        format!(
-            "drop_dir = {:?}\ndatabase = {:?}\n[watch]\nstable_secs = 2.0\nsettle_ms = 200\npoll_ms = 100\n",
-            drop_dir,
-            dir.path().join("state/phyllo.sqlite")
-        ),
-    )
-    .unwrap();
+        &drop_dir,
+        &dir.path().join("state/phyllo.sqlite"),
+        "[watch]\nstable_secs = 2.0\nsettle_ms = 200\npoll_ms = 100\n",
+    );
     let log = std::fs::File::create(dir.path().join("serve.log")).unwrap();
     let mut serve = Command::new(&phyllo)
         .arg("serve")
@@ -303,19 +283,7 @@ fn daemon_counts_a_generated_sequence() {
         .spawn()
         .unwrap();
     // tail starts before the service has created the database, and waits for it.
-    let mut tail = Command::new(&phyllo)
-        .args(["tail", "--json", "-c"])
-        .arg(&cfg)
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let tail_out = tail.stdout.take().unwrap();
-    let tail_reader = std::thread::spawn(move || {
-        BufReader::new(tail_out)
-            .lines()
-            .map(|l| l.unwrap())
-            .collect::<Vec<String>>()
-    });
+    let tail = spawn_tail(&cfg, &["--json"]);
     std::thread::sleep(Duration::from_secs(2));
 
     // Drop the frames: shuffled; a third written slowly through an open file,
@@ -386,7 +354,7 @@ fn daemon_counts_a_generated_sequence() {
     );
 
     // SIGTERM: clean stop, reported as such.
-    kill_term(&serve);
+    signal(serve.id(), "TERM");
     let st = serve.wait().unwrap();
     assert!(st.success(), "phyllo serve exit status {st}");
     let out = Command::new(&phyllo)
@@ -397,9 +365,7 @@ fn daemon_counts_a_generated_sequence() {
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["state"], "stopped");
     assert_eq!(v["counts_with_other_settings"], 0, "{v}");
-    kill_term(&tail);
-    tail.wait().unwrap();
-    let lines = tail_reader.join().unwrap();
+    let (_, lines) = tail.stop();
     let counts: Vec<serde_json::Value> = lines
         .iter()
         .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())

@@ -1,0 +1,69 @@
+//! Reading a test site's database.
+
+use std::path::Path;
+
+use phyllo::store::Store;
+
+/// One integer from the database at `db` (-1 if it cannot be read).
+pub fn q(db: &Path, sql: &str) -> i64 {
+    let Ok(s) = Store::open_read_only(db) else {
+        return -1;
+    };
+    s.conn().query_row(sql, [], |r| r.get(0)).unwrap_or(-1)
+}
+
+/// One text value from the database.
+pub fn qs(db: &Path, sql: &str) -> String {
+    let s = Store::open_read_only(db).unwrap();
+    s.conn()
+        .query_row(sql, [], |r| r.get::<_, String>(0))
+        .unwrap_or_else(|e| panic!("{sql}: {e}"))
+}
+
+/// All rows of a query, each row's columns joined with `|` (NULL as `∅`).
+pub fn rows(db: &Path, sql: &str) -> Vec<String> {
+    let s = Store::open_read_only(db).unwrap();
+    let mut st = s.conn().prepare(sql).unwrap();
+    let n = st.column_count();
+    st.query_map([], |r| {
+        let mut cols = Vec::with_capacity(n);
+        for i in 0..n {
+            use rusqlite::types::ValueRef;
+            cols.push(match r.get_ref(i)? {
+                ValueRef::Null => "∅".to_string(),
+                ValueRef::Integer(v) => v.to_string(),
+                ValueRef::Real(v) => format!("{v:.6}"),
+                ValueRef::Text(t) | ValueRef::Blob(t) => String::from_utf8_lossy(t).into_owned(),
+            });
+        }
+        Ok(cols.join("|"))
+    })
+    .unwrap()
+    .map(Result::unwrap)
+    .collect()
+}
+
+/// Timelines as comparable rows: sessions, plants and events per plant name.
+pub fn timelines(db: &Path) -> Vec<String> {
+    let mut out = rows(
+        db,
+        "SELECT 'session', p.name, s.start, s.views, s.n_counts, s.fused, s.leaves_emerged, s.living
+         FROM sessions s JOIN plants p ON p.id = s.plant_id ORDER BY p.name, s.start",
+    );
+    out.extend(rows(
+        db,
+        "SELECT 'plant', name, sessions, last_taken_at, leaves_emerged, living, phyllochron_days
+         FROM plants ORDER BY name",
+    ));
+    out.extend(rows(
+        db,
+        "SELECT 'event', p.name, e.leaf, e.emerged_at, e.seen_at FROM events e
+         JOIN plants p ON p.id = e.plant_id ORDER BY p.name, e.leaf",
+    ));
+    out
+}
+
+/// `PRAGMA integrity_check` of the database.
+pub fn integrity(db: &Path) -> String {
+    qs(db, "PRAGMA integrity_check")
+}
