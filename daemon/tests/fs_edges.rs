@@ -8,26 +8,16 @@
 //! - an image at a path longer than the system can open (issue 57 item 10)
 //!   is recorded as failed, named, with a clear error.
 
+mod common;
+
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use common::{ok as phyllo, signal, BIN};
+
 /// The service user's stand-in: `nobody`.
 const SERVICE_UID: u32 = 65534;
-
-fn phyllo(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_phyllo"))
-        .args(args)
-        .output()
-        .expect("runs phyllo");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(out.status.success(), "phyllo {args:?}: {text}");
-    text
-}
 
 /// Every file and folder under `dir`, `dir` included.
 fn tree(dir: &Path) -> Vec<PathBuf> {
@@ -123,7 +113,7 @@ fn an_image_deeper_than_the_system_can_open_is_recorded_as_failed() {
         "drop_dir = \"drop\"\ndatabase = \"state/phyllo.sqlite\"\n[watch]\nstable_secs = 0.2\n",
     )
     .unwrap();
-    let mut serve = Command::new(env!("CARGO_BIN_EXE_phyllo"))
+    let mut serve = Command::new(BIN)
         .args(["serve", "-c"])
         .arg(&config)
         .stderr(std::process::Stdio::null())
@@ -149,9 +139,7 @@ fn an_image_deeper_than_the_system_can_open_is_recorded_as_failed() {
             break rows;
         }
     };
-    let _ = Command::new("kill")
-        .args(["-TERM", &serve.id().to_string()])
-        .status();
+    signal(serve.id(), "TERM");
     let _ = serve.wait();
     assert_eq!(failed.len(), 1, "{failed:?}");
     let (path, error) = &failed[0];
