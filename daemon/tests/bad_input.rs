@@ -535,9 +535,8 @@ fn bad_input_each_kind_recorded_and_service_keeps_going() {
         }
         let stored = phyllo::domain::rel_path::encode(Path::new(&c.rel)).unwrap();
         let got = {
-            let s = phyllo::store::Store::open_read_only(&site.db).unwrap();
+            let s = common::open(&site.db).unwrap();
             let mut st = s
-                .conn()
                 .prepare("SELECT state, error FROM images WHERE path = ?1")
                 .unwrap();
             // Stored, and shown, as rel_path's lossless printable text.

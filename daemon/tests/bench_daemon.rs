@@ -108,14 +108,13 @@ fn bench_daemon_on_full_frames() {
         b
     };
     let row_at = |name: &str| -> Option<String> {
-        let s = phyllo::store::Store::open_read_only(&site.db).ok()?;
-        s.conn()
-            .query_row(
-                "SELECT updated_at || '|' || state FROM images WHERE path = ?1",
-                [name],
-                |r| r.get::<_, String>(0),
-            )
-            .ok()
+        let s = common::open(&site.db).ok()?;
+        s.query_row(
+            "SELECT updated_at || '|' || state FROM images WHERE path = ?1",
+            [name],
+            |r| r.get::<_, String>(0),
+        )
+        .ok()
     };
 
     // Warm-up (first inference allocates).

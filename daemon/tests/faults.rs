@@ -234,11 +234,10 @@ fn readers_do_not_block_writers() {
     let tail = spawn_tail(&site.cfg, &["--json"]);
 
     // A reader that opens a transaction and never ends it.
-    let held = phyllo::store::Store::open_read_only(&site.db).unwrap();
-    held.conn().execute_batch("BEGIN").unwrap();
+    let held = common::open(&site.db).unwrap();
+    held.execute_batch("BEGIN").unwrap();
     let count_held = || -> i64 {
-        held.conn()
-            .query_row("SELECT COUNT(*) FROM images", [], |r| r.get(0))
+        held.query_row("SELECT COUNT(*) FROM images", [], |r| r.get(0))
             .unwrap()
     };
     let snapshot = count_held();
@@ -294,7 +293,7 @@ fn readers_do_not_block_writers() {
         snapshot,
         "the held read transaction kept its snapshot"
     );
-    held.conn().execute_batch("COMMIT").unwrap();
+    held.execute_batch("COMMIT").unwrap();
     if let Some((c, mut stdin)) = shell.take() {
         writeln!(stdin, "SELECT COUNT(*) FROM images; COMMIT;").unwrap();
         drop(stdin);

@@ -186,7 +186,8 @@ impl Store {
 
     /// The underlying connection, for the store's own tests: every other
     /// reader asks for the rows it needs.
-    pub fn conn(&self) -> &Connection {
+    #[cfg(test)]
+    pub(crate) fn conn(&self) -> &Connection {
         &self.conn
     }
 

@@ -2,28 +2,38 @@
 
 use std::path::Path;
 
-use phyllo::store::Store;
+use rusqlite::{Connection, OpenFlags};
+
+/// The database at `db`, read-only, as `phyllo status` reads it: tests
+/// inspect a database with their own SQL, the store hands out no connection.
+pub fn open(db: &Path) -> rusqlite::Result<Connection> {
+    let conn = Connection::open_with_flags(
+        db,
+        OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+    )?;
+    conn.busy_timeout(std::time::Duration::from_secs(10))?;
+    Ok(conn)
+}
 
 /// One integer from the database at `db` (-1 if it cannot be read).
 pub fn q(db: &Path, sql: &str) -> i64 {
-    let Ok(s) = Store::open_read_only(db) else {
+    let Ok(s) = open(db) else {
         return -1;
     };
-    s.conn().query_row(sql, [], |r| r.get(0)).unwrap_or(-1)
+    s.query_row(sql, [], |r| r.get(0)).unwrap_or(-1)
 }
 
 /// One text value from the database.
 pub fn qs(db: &Path, sql: &str) -> String {
-    let s = Store::open_read_only(db).unwrap();
-    s.conn()
-        .query_row(sql, [], |r| r.get::<_, String>(0))
+    let s = open(db).unwrap();
+    s.query_row(sql, [], |r| r.get::<_, String>(0))
         .unwrap_or_else(|e| panic!("{sql}: {e}"))
 }
 
 /// All rows of a query, each row's columns joined with `|` (NULL as `∅`).
 pub fn rows(db: &Path, sql: &str) -> Vec<String> {
-    let s = Store::open_read_only(db).unwrap();
-    let mut st = s.conn().prepare(sql).unwrap();
+    let s = open(db).unwrap();
+    let mut st = s.prepare(sql).unwrap();
     let n = st.column_count();
     st.query_map([], |r| {
         let mut cols = Vec::with_capacity(n);
