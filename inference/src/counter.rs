@@ -13,6 +13,7 @@ use crate::decode::{decode_rgb, DecodeLimits};
 use crate::error::InferenceError;
 use crate::flip;
 use crate::model::{Model, ModelInfo, ModelOptions};
+pub use crate::model_path::{default_model_path, MODEL_ENV};
 use crate::panoptic::Panoptic;
 use crate::pieces::{drop_far_specks, split_pieces};
 use crate::postprocess::{panoptic, PostprocessParams};
@@ -29,9 +30,6 @@ use crate::zoom::{instances_height, plant_height, HeightMeasure, Zoom};
 /// Slack around the plant's box, in model pixels, within which instance
 /// centres are still taken as plant.
 const PLANT_MARGIN: i64 = 16;
-
-/// Environment variable naming the default model file.
-pub const MODEL_ENV: &str = "PHYLLO_MODEL";
 
 /// Everything the pipeline can be told.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -102,42 +100,6 @@ impl Default for CounterConfig {
     }
 }
 
-/// The default model: `$PHYLLO_MODEL`, then `../share/phyllo/phyllo.onnx`
-/// beside the executable (a packaged install), then the model shipped in this
-/// source tree (`models/phyllo.onnx`, else `models/phyllo-untrained.onnx`).
-pub fn default_model_path() -> PathBuf {
-    if let Some(p) = path_from_env(MODEL_ENV) {
-        return p;
-    }
-    let mut candidates = shipped_model_candidates("phyllo.onnx");
-    candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/phyllo-untrained.onnx"));
-    candidates
-        .iter()
-        .find(|p| p.is_file())
-        .cloned()
-        .unwrap_or_else(|| candidates[0].clone())
-}
-
-/// The path an environment variable names, unless it is unset or empty.
-pub(crate) fn path_from_env(var: &str) -> Option<PathBuf> {
-    std::env::var_os(var).filter(|v| !v.is_empty()).map(PathBuf::from)
-}
-
-/// Where a shipped model file `file` may lie, in the order searched:
-/// `../share/phyllo/` beside the executable (a packaged install), then
-/// `models/` in this source tree.
-pub(crate) fn shipped_model_candidates(file: &str) -> Vec<PathBuf> {
-    let mut candidates = Vec::new();
-    if let Some(exe_dir) = std::env::current_exe()
-        .ok()
-        .and_then(|e| e.parent().map(Path::to_path_buf))
-    {
-        candidates.push(exe_dir.join("../share/phyllo").join(file));
-    }
-    candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../models").join(file));
-    candidates
-}
-
 /// Everything counting one image produced, for overlays and evaluation.
 #[derive(Debug, Clone)]
 pub struct Analysis {
@@ -176,7 +138,7 @@ impl Counter {
             spinning: config.ort_spinning,
         };
         let model = Model::load(env, &model_path, options)?;
-        let side_model_chosen = config.model.is_some() || path_from_env(MODEL_ENV).is_some();
+        let side_model_chosen = config.model.is_some() || crate::model_path::side_model_from_env();
         let top = match config.top_views.model_path(side_model_chosen) {
             Some(path) => {
                 let postprocess = PostprocessParams {

@@ -27,6 +27,7 @@ pub mod decode;
 pub mod error;
 pub mod flip;
 pub mod model;
+pub mod model_path;
 pub mod overlay;
 pub mod panoptic;
 pub mod pieces;

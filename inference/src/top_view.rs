@@ -11,14 +11,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::counter::{path_from_env, shipped_model_candidates};
+pub use crate::model_path::{default_top_model_path, TOP_MODEL_ENV, TOP_MODEL_FILE};
 use crate::station::glob_match;
-
-/// Environment variable naming the default top-view model file.
-pub const TOP_MODEL_ENV: &str = "PHYLLO_TOP_MODEL";
-
-/// File name of the shipped top-view model, beside the side-view model.
-pub const TOP_MODEL_FILE: &str = "phyllo-top.onnx";
 
 /// NMS window of the shipped top-view model, in output pixels, chosen with
 /// its centre threshold.
@@ -134,18 +128,6 @@ impl TopViewConfig {
     pub fn nms_kernel(&self) -> u32 {
         self.nms_kernel.unwrap_or(DEFAULT_TOP_NMS_KERNEL)
     }
-}
-
-/// The default top-view model: `$PHYLLO_TOP_MODEL`, then
-/// `../share/phyllo/phyllo-top.onnx` beside the executable, then
-/// `models/phyllo-top.onnx` in this source tree; `None` when none exists
-/// (the side-view model then counts top views too).
-pub fn default_top_model_path() -> Option<PathBuf> {
-    path_from_env(TOP_MODEL_ENV).or_else(|| {
-        shipped_model_candidates(TOP_MODEL_FILE)
-            .into_iter()
-            .find(|p| p.is_file())
-    })
 }
 
 #[cfg(test)]
