@@ -10,6 +10,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use phyllo::config::Config;
+use phyllo::domain::names::View;
 use phyllo::pipeline::counting::{CountError, LeafCounter};
 use phyllo::store::{CountRecord, Store};
 use tokio::sync::watch;
@@ -19,7 +20,7 @@ use tokio::sync::watch;
 struct TextCounter;
 
 impl LeafCounter for TextCounter {
-    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError> {
+    fn count(&self, name: &Path, _: &View, bytes: &[u8]) -> Result<CountRecord, CountError> {
         let text = String::from_utf8_lossy(bytes);
         let n = text
             .strip_prefix("leaves=")
@@ -279,9 +280,9 @@ fn missing_drop_dir_is_waited_for() {
 struct SlowCounter(Duration);
 
 impl LeafCounter for SlowCounter {
-    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError> {
+    fn count(&self, name: &Path, view: &View, bytes: &[u8]) -> Result<CountRecord, CountError> {
         std::thread::sleep(self.0);
-        TextCounter.count(name, bytes)
+        TextCounter.count(name, view, bytes)
     }
 
     fn model_id(&self) -> String {

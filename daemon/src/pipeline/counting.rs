@@ -1,9 +1,16 @@
 //! The boundary between the daemon and the model: anything that turns image
 //! bytes into a leaf count. The service holds an `Arc<dyn LeafCounter>`; in
-//! production it is `phyllo_inference::Counter`.
+//! production it is an [`OnnxCounter`], `phyllo_inference::Counter` with the
+//! rules that tell it what each image is ([`ImageRules`]): the caller hands
+//! in the view it parsed from the name, once, and the model gets the facts.
 
 use std::path::Path;
 
+use phyllo_inference::ImageFacts;
+
+use crate::config::InferenceConfig;
+use crate::domain::image_facts::{CameraZoomRule, ImageRules, TopViewsConfig};
+use crate::domain::names::View;
 use crate::store::CountRecord;
 
 /// Why an image could not be counted.
@@ -18,9 +25,10 @@ pub struct CountError {
 
 /// Counts leaves. Blocking and CPU-heavy: call it from worker threads only.
 pub trait LeafCounter: Send + Sync {
-    /// Counts the leaves in an image whose bytes were already read. `name` is
-    /// for messages and to recognise the format.
-    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError>;
+    /// Counts the leaves in an image whose bytes were already read and whose
+    /// name `[names]` read as `view`. `name` is for messages and for the
+    /// station rules on the file name; the format is told by the bytes.
+    fn count(&self, name: &Path, view: &View, bytes: &[u8]) -> Result<CountRecord, CountError>;
     /// Identifies the model, stored with every observation.
     fn model_id(&self) -> String;
     /// The settings its counts are made with (JSON, as stored with each
@@ -30,32 +38,79 @@ pub trait LeafCounter: Send + Sync {
     }
 }
 
-/// The inference core's settings from `[inference]`.
-pub fn counter_config(cfg: &crate::config::InferenceConfig) -> phyllo_inference::CounterConfig {
-    phyllo_inference::CounterConfig {
-        model: cfg.model.clone(),
-        ort_lib: cfg.ort_lib.clone(),
-        intra_threads: cfg.intra_threads,
-        batch_size: cfg.batch_size,
-        zoom_plant_height: cfg.zoom_plant_height,
-        flip: cfg.flip,
-        camera_zoom: cfg.camera_zoom,
+/// What the service counts with: the inference core's settings and the
+/// daemon's rules that say what each image is.
+#[derive(Debug, Clone)]
+pub struct CountingConfig {
+    /// The inference core's settings.
+    pub counter: phyllo_inference::CounterConfig,
+    /// `[[inference.camera_zoom_rules]]`: zooms pinned by file-name pattern.
+    pub camera_zoom_rules: Vec<CameraZoomRule>,
+    /// `[inference.top_views]`, its deprecated `files` included.
+    pub top_views: TopViewsConfig,
+}
+
+impl CountingConfig {
+    /// The rules that turn a parsed name into the model's [`ImageFacts`].
+    pub fn image_rules(&self) -> ImageRules<'_> {
+        ImageRules::new(&self.camera_zoom_rules, &self.top_views)
+    }
+}
+
+/// The counting settings from `[inference]`.
+pub fn counter_config(cfg: &InferenceConfig) -> CountingConfig {
+    CountingConfig {
+        counter: phyllo_inference::CounterConfig {
+            model: cfg.model.clone(),
+            ort_lib: cfg.ort_lib.clone(),
+            intra_threads: cfg.intra_threads,
+            batch_size: cfg.batch_size,
+            zoom_plant_height: cfg.zoom_plant_height,
+            flip: cfg.flip,
+            camera_zoom: cfg.camera_zoom,
+            top_views: cfg.top_views.counting(),
+            ..phyllo_inference::CounterConfig::default()
+        },
         camera_zoom_rules: cfg.camera_zoom_rules.clone(),
         top_views: cfg.top_views.clone(),
-        ..phyllo_inference::CounterConfig::default()
     }
 }
 
 /// Builds the production counter (ONNX Runtime) from `[inference]`.
-pub fn onnx_counter(cfg: &crate::config::InferenceConfig) -> anyhow::Result<std::sync::Arc<dyn LeafCounter>> {
-    let counter = phyllo_inference::Counter::new(counter_config(cfg))?;
-    Ok(std::sync::Arc::new(counter))
+pub fn onnx_counter(cfg: &InferenceConfig) -> anyhow::Result<std::sync::Arc<dyn LeafCounter>> {
+    Ok(std::sync::Arc::new(OnnxCounter::new(counter_config(cfg))?))
 }
 
-impl LeafCounter for phyllo_inference::Counter {
-    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError> {
+/// The production counter: the inference core and the rules that say what
+/// each image is.
+pub struct OnnxCounter {
+    counter: phyllo_inference::Counter,
+    config: CountingConfig,
+}
+
+impl OnnxCounter {
+    /// Loads ONNX Runtime and the models `config` names.
+    pub fn new(config: CountingConfig) -> anyhow::Result<Self> {
+        let counter = phyllo_inference::Counter::new(config.counter.clone())?;
+        Ok(Self { counter, config })
+    }
+
+    /// What the model is told about the image at `name`, read as `view`.
+    pub fn facts(&self, name: &Path, view: &View) -> ImageFacts {
+        self.config.image_rules().facts(name, view)
+    }
+
+    /// The inference core, for overlays and the like.
+    pub fn inner(&self) -> &phyllo_inference::Counter {
+        &self.counter
+    }
+}
+
+impl LeafCounter for OnnxCounter {
+    fn count(&self, name: &Path, view: &View, bytes: &[u8]) -> Result<CountRecord, CountError> {
         use phyllo_inference::InferenceError as E;
-        match self.count_bytes(name, bytes) {
+        let facts = self.facts(name, view);
+        match self.counter.count_bytes(name, &facts, bytes) {
             Ok(r) => Ok(CountRecord {
                 leaf_count: r.leaf_count,
                 instances: serde_json::to_value(&r.instances).unwrap_or_default(),
@@ -68,7 +123,7 @@ impl LeafCounter for phyllo_inference::Counter {
                     "camera": r.camera,
                 }),
                 ms_total: r.ms.total,
-                model_id: self.model_id_for(name),
+                model_id: self.counter.model_id_for(facts.view),
                 settings: LeafCounter::settings(self),
             }),
             Err(e) => {
@@ -83,17 +138,18 @@ impl LeafCounter for phyllo_inference::Counter {
     }
 
     fn model_id(&self) -> String {
-        phyllo_inference::Counter::model_id(self)
+        self.counter.model_id()
     }
 
     fn settings(&self) -> serde_json::Value {
-        counting_settings(self.config())
+        counting_settings(&self.config)
     }
 }
 
 /// What a count depends on besides the model and the image, as stored with
 /// each observation.
-fn counting_settings(config: &phyllo_inference::CounterConfig) -> serde_json::Value {
+fn counting_settings(counting: &CountingConfig) -> serde_json::Value {
+    let config = &counting.counter;
     // The contract's values where the configuration leaves them open, so a
     // later contract change shows too.
     let zoom = phyllo_inference::zoom::Zoom::from_contract(phyllo_contract::Contract::embedded());
@@ -105,9 +161,9 @@ fn counting_settings(config: &phyllo_inference::CounterConfig) -> serde_json::Va
         "region": config.region,
         "scale": config.scale,
         "camera_zoom": config.camera_zoom,
-        "camera_zoom_rules": config.camera_zoom_rules,
+        "camera_zoom_rules": counting.camera_zoom_rules,
         "postprocess": config.postprocess,
-        "top_views": config.top_views,
+        "top_views": counting.top_views,
     });
     shorten_f32(&mut settings);
     settings
@@ -148,7 +204,12 @@ mod tests {
             scale: Some(0.3),
             ..phyllo_inference::CounterConfig::default()
         };
-        let text = counting_settings(&config).to_string();
+        let counting = CountingConfig {
+            counter: config,
+            camera_zoom_rules: Vec::new(),
+            top_views: TopViewsConfig::default(),
+        };
+        let text = counting_settings(&counting).to_string();
         assert!(text.contains("\"scale\":0.3,"), "{text}");
         assert!(!text.contains("0000000"), "{text}");
     }

@@ -95,7 +95,7 @@ mod tests {
     use std::sync::Mutex;
 
     use crate::config::Config;
-    use crate::domain::names::NamePatterns;
+    use crate::domain::names::{NamePatterns, View};
     use crate::pipeline::counting::{CountError, LeafCounter};
     use crate::pipeline::job::Stats;
     use crate::store::CountRecord;
@@ -103,7 +103,7 @@ mod tests {
     struct NeverCalled;
 
     impl LeafCounter for NeverCalled {
-        fn count(&self, _: &Path, _: &[u8]) -> Result<CountRecord, CountError> {
+        fn count(&self, _: &Path, _: &View, _: &[u8]) -> Result<CountRecord, CountError> {
             unreachable!("the test never counts")
         }
         fn model_id(&self) -> String {

@@ -306,7 +306,11 @@ fn count_and_record(
     name: &ParsedName,
     bytes: &[u8],
 ) -> anyhow::Result<Recorded> {
-    let counted = std::panic::catch_unwind(AssertUnwindSafe(|| ctx.counter.count(&job.path, bytes)));
+    // The view parsed from the name goes along: the model is never left to
+    // work it out from the file name again.
+    let counted = std::panic::catch_unwind(AssertUnwindSafe(|| {
+        ctx.counter.count(&job.path, &name.view, bytes)
+    }));
     let (error, retry) = match counted {
         Ok(Ok(count)) => {
             let r = store.record(facts, Outcome::Counted(name, &count))?;
