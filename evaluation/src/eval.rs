@@ -307,7 +307,7 @@ impl Gathered {
         if let Some(dir) = &args.tip_overlays {
             let mut drawn = overlay::render_encoded(counter, &hc.image, &bytes, &analysis)?;
             tip_overlay::draw(&mut drawn, tips, &m, &analysis.result.instances);
-            let out = overlay::output_path(dir, &hc.image, "tips");
+            let out = crate::image_names::overlay_path(dir, &hc.image, "tips");
             drawn
                 .save(&out)
                 .with_context(|| format!("cannot write tip overlay {}", out.display()))?;

@@ -7,9 +7,10 @@
 //! `phyllo eval`, `phyllo bench` and `phyllo count` classify their images
 //! here, once per image, by the rule the top-view model shipped with: a name
 //! holding `_TV_` or `_top.` is a top view. No station pins a zoom here: the
-//! counter's `camera_zoom` applies.
+//! counter's `camera_zoom` applies. Their overlays are named after the
+//! image here too ([`overlay_path`]).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use phyllo_inference::{ImageFacts, View};
 
@@ -46,9 +47,32 @@ fn side_angle(name: &str) -> Option<u16> {
         .flatten()
 }
 
+/// Where an overlay of `image` is written: `DIR/<image stem>.<kind>.png`.
+pub fn overlay_path(dir: &Path, image: &Path, kind: &str) -> PathBuf {
+    let stem = image
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "image".into());
+    dir.join(format!("{stem}.{kind}.png"))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Moved from `phyllo_inference::overlay::output_path`.
+    #[test]
+    fn an_overlay_is_named_after_its_image_and_kind() {
+        let dir = Path::new("out");
+        assert_eq!(
+            overlay_path(dir, Path::new("in/plant_SV_108.jpg"), "tips"),
+            dir.join("plant_SV_108.tips.png")
+        );
+        assert_eq!(
+            overlay_path(dir, Path::new(""), "overlay"),
+            dir.join("image.overlay.png")
+        );
+    }
 
     fn is_top_view(path: &Path) -> bool {
         facts_for(path).view == View::Top

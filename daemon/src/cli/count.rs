@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context;
-use phyllo_inference::{overlay, Counter, ImageFacts, InferenceError};
+use phyllo_inference::{Counter, ImageFacts, InferenceError};
 use serde_json::json;
 
 use super::counter_args::CounterArgs;
@@ -110,7 +110,7 @@ fn count_one(
     let analysis = counter.analyse_bytes(path, facts, &bytes)?;
     if let Some(dir) = overlay_dir {
         let drawn = render_overlay(counter, path, &bytes, &analysis)?;
-        let out = overlay::output_path(dir, path, "overlay");
+        let out = phyllo_evaluation::image_names::overlay_path(dir, path, "overlay");
         drawn
             .save(&out)
             .map_err(|e| InferenceError::image(&out, format!("cannot write overlay: {e}")))?;

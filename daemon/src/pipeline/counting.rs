@@ -213,4 +213,21 @@ mod tests {
         assert!(text.contains("\"scale\":0.3,"), "{text}");
         assert!(!text.contains("0000000"), "{text}");
     }
+
+    /// The rules that moved out of the inference core (issue 55) are stored
+    /// with each observation as they were before.
+    #[test]
+    fn image_rules_are_stored_as_before() {
+        let cfg = crate::config::Config::parse(
+            "drop_dir = \"/d\"\ndatabase = \"/db\"\n[[inference.camera_zoom_rules]]\nfiles = \"81-*\"\ncamera_zoom = 2\n",
+        )
+        .unwrap();
+        let text = counting_settings(&counter_config(&cfg.inference)).to_string();
+        for part in [
+            r#""camera_zoom_rules":[{"camera_zoom":2.0,"files":"81-*"}]"#,
+            r#""top_views":{"center_threshold":null,"files":["*_TV_*","*_top.*"],"model":"default","nms_kernel":null}"#,
+        ] {
+            assert!(text.contains(part), "{part} not in {text}");
+        }
+    }
 }
