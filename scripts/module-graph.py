@@ -149,8 +149,8 @@ DAEMON_LAYERS = {
     "ops": {"config", "counting", "domain", "files", "store"},
     "sinks": {"config", "domain", "files", "store"},
     "store": {"config", "domain", "files"},
-    "counting": {"config", "store"},
-    "config": {"domain"},
+    "counting": {"config", "domain", "store"},
+    "config": {"domain", "files"},
     "domain": set(),
     "files": set(),
 }

@@ -16,6 +16,7 @@ pub use phyllo_inference as inference;
 
 pub mod cli;
 pub mod config;
+pub mod counting;
 pub mod domain;
 pub mod files;
 pub mod ops;

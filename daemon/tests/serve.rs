@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use common::{config_text, flat_name, q, wait_for, SlowCounter, TextCounter};
 use phyllo::config::Config;
-use phyllo::pipeline::counting::LeafCounter;
+use phyllo::counting::LeafCounter;
 use phyllo::store::Store;
 use tokio::sync::watch;
 

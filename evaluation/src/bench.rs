@@ -14,6 +14,8 @@ use phyllo_inference::model::ModelInfo;
 use phyllo_inference::{Counter, CounterConfig, StageTimings};
 use serde_json::Value;
 
+use crate::image_names::facts_for;
+
 /// What `phyllo bench` times and beside what: every option but the model's,
 /// which the caller turns into a [`CounterConfig`].
 #[derive(Debug, Clone, clap::Args)]
@@ -128,13 +130,13 @@ impl Sequential {
     /// Counts every frame `repeat` times after one warm-up count.
     fn time(counter: &Counter, frames: &[PathBuf], repeat: usize) -> anyhow::Result<Self> {
         // Warm-up: the first run pays for ONNX Runtime's allocations.
-        counter.count_path(&frames[0])?;
+        counter.count_path(&frames[0], &facts_for(&frames[0]))?;
         let mut per_image = Vec::new();
         let mut tiles = 0u64;
         let t0 = Instant::now();
         for _ in 0..repeat {
             for f in frames {
-                let r = counter.count_path(f)?;
+                let r = counter.count_path(f, &facts_for(f))?;
                 tiles += u64::from(r.tiles);
                 per_image.push(r.ms);
             }
@@ -231,7 +233,7 @@ fn print_throughput(
 fn print_agreement(counter: &Counter, frames: &[PathBuf], theirs: &[Value]) -> anyhow::Result<()> {
     let ours: Vec<u32> = frames
         .iter()
-        .map(|f| counter.count_path(f).map(|r| r.leaf_count))
+        .map(|f| counter.count_path(f, &facts_for(f)).map(|r| r.leaf_count))
         .collect::<Result<_, _>>()?;
     let theirs: Vec<u64> = theirs.iter().filter_map(|v| v.as_u64()).collect();
     let same = ours

@@ -14,6 +14,7 @@ use phyllo_contract::Contract;
 use phyllo_inference::{overlay, Counter, CounterConfig};
 
 use crate::fingerprint::Fingerprint;
+use crate::image_names::facts_for;
 use crate::intervals::MetricIntervals;
 use crate::leaf_errors::LeafErrors;
 use crate::metrics::{per_view, CountMetrics, CountPair};
@@ -210,7 +211,7 @@ impl Gathered {
         let c = Contract::embedded();
         let bytes =
             std::fs::read(&item.image).with_context(|| format!("cannot read {}", item.image.display()))?;
-        let analysis = counter.analyse_bytes(&item.image, &bytes)?;
+        let analysis = counter.analyse_bytes(&item.image, &facts_for(&item.image), &bytes)?;
         let label_bytes = std::fs::read(&item.label)
             .with_context(|| format!("cannot read label {}", item.label.display()))?;
         let label = image::load_from_memory(&label_bytes)
@@ -296,7 +297,7 @@ impl Gathered {
         let bytes =
             std::fs::read(&hc.image).with_context(|| format!("cannot read {}", hc.image.display()))?;
         self.fingerprint.add_human_count(hc, &bytes);
-        let analysis = counter.analyse_bytes(&hc.image, &bytes)?;
+        let analysis = counter.analyse_bytes(&hc.image, &facts_for(&hc.image), &bytes)?;
         let Some(tips) = &hc.tips else {
             return Ok((analysis.result.leaf_count, None));
         };
@@ -306,7 +307,7 @@ impl Gathered {
         if let Some(dir) = &args.tip_overlays {
             let mut drawn = overlay::render_encoded(counter, &hc.image, &bytes, &analysis)?;
             tip_overlay::draw(&mut drawn, tips, &m, &analysis.result.instances);
-            let out = overlay::output_path(dir, &hc.image, "tips");
+            let out = crate::image_names::overlay_path(dir, &hc.image, "tips");
             drawn
                 .save(&out)
                 .with_context(|| format!("cannot write tip overlay {}", out.display()))?;

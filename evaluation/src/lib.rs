@@ -12,6 +12,7 @@
 pub mod bench;
 pub mod eval;
 pub mod fingerprint;
+pub mod image_names;
 pub mod intervals;
 pub mod leaf_errors;
 pub mod metrics;

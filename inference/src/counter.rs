@@ -1,4 +1,7 @@
 //! The inference pipeline: image bytes in, leaf count out.
+//!
+//! What the image is (side or top view, the zoom its station pins) comes in
+//! as [`ImageFacts`] from the caller; nothing here reads a file name.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -12,14 +15,15 @@ use crate::camera_scale::{self, CameraZoom};
 use crate::decode::{decode_rgb, DecodeLimits};
 use crate::error::InferenceError;
 use crate::flip;
+use crate::image::{ImageFacts, View};
 use crate::model::{Model, ModelInfo, ModelOptions};
+pub use crate::model_path::{default_model_path, MODEL_ENV};
 use crate::panoptic::Panoptic;
 use crate::pieces::{drop_far_specks, split_pieces};
 use crate::postprocess::{panoptic, PostprocessParams};
 use crate::region::RegionMode;
 use crate::result::{CountResult, Instance, StageTimings};
 use crate::runtime;
-use crate::station::{camera_zoom_for, CameraZoomRule};
 use crate::stitch::{stitch, TileOutputs};
 use crate::tiling::{batch_tensor, prepare, Canvas};
 use crate::tips::CountRule;
@@ -29,9 +33,6 @@ use crate::zoom::{instances_height, plant_height, HeightMeasure, Zoom};
 /// Slack around the plant's box, in model pixels, within which instance
 /// centres are still taken as plant.
 const PLANT_MARGIN: i64 = 16;
-
-/// Environment variable naming the default model file.
-pub const MODEL_ENV: &str = "PHYLLO_MODEL";
 
 /// Everything the pipeline can be told.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -55,11 +56,9 @@ pub struct CounterConfig {
     /// dataset crops.
     pub scale: Option<f32>,
     /// The side camera's zoom relative to the contract's: measured on the
-    /// chamber's back panel (the default), the contract's, or pinned.
+    /// chamber's back panel (the default), the contract's, or pinned. An
+    /// image whose [`ImageFacts`] pin a zoom is counted at that one instead.
     pub camera_zoom: CameraZoom,
-    /// Per-station zooms by file-name pattern; the first match wins over
-    /// `camera_zoom`.
-    pub camera_zoom_rules: Vec<CameraZoomRule>,
     /// Plant height small plants are enlarged to, in model pixels (0: never
     /// enlarge); `None` takes the contract's `zoom_plant_height`.
     pub zoom_plant_height: Option<u32>,
@@ -73,7 +72,7 @@ pub struct CounterConfig {
     pub flip: bool,
     /// Post-processing parameters.
     pub postprocess: PostprocessParams,
-    /// How top views are told and which model counts them.
+    /// Which model counts the top views, and how.
     pub top_views: TopViewConfig,
     /// Decoder limits.
     pub limits: DecodeLimits,
@@ -90,7 +89,6 @@ impl Default for CounterConfig {
             region: RegionMode::Auto,
             scale: None,
             camera_zoom: CameraZoom::default(),
-            camera_zoom_rules: Vec::new(),
             zoom_plant_height: None,
             max_zoom: None,
             zoom_height_measure: HeightMeasure::default(),
@@ -100,42 +98,6 @@ impl Default for CounterConfig {
             limits: DecodeLimits::default(),
         }
     }
-}
-
-/// The default model: `$PHYLLO_MODEL`, then `../share/phyllo/phyllo.onnx`
-/// beside the executable (a packaged install), then the model shipped in this
-/// source tree (`models/phyllo.onnx`, else `models/phyllo-untrained.onnx`).
-pub fn default_model_path() -> PathBuf {
-    if let Some(p) = path_from_env(MODEL_ENV) {
-        return p;
-    }
-    let mut candidates = shipped_model_candidates("phyllo.onnx");
-    candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/phyllo-untrained.onnx"));
-    candidates
-        .iter()
-        .find(|p| p.is_file())
-        .cloned()
-        .unwrap_or_else(|| candidates[0].clone())
-}
-
-/// The path an environment variable names, unless it is unset or empty.
-pub(crate) fn path_from_env(var: &str) -> Option<PathBuf> {
-    std::env::var_os(var).filter(|v| !v.is_empty()).map(PathBuf::from)
-}
-
-/// Where a shipped model file `file` may lie, in the order searched:
-/// `../share/phyllo/` beside the executable (a packaged install), then
-/// `models/` in this source tree.
-pub(crate) fn shipped_model_candidates(file: &str) -> Vec<PathBuf> {
-    let mut candidates = Vec::new();
-    if let Some(exe_dir) = std::env::current_exe()
-        .ok()
-        .and_then(|e| e.parent().map(Path::to_path_buf))
-    {
-        candidates.push(exe_dir.join("../share/phyllo").join(file));
-    }
-    candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../models").join(file));
-    candidates
 }
 
 /// Everything counting one image produced, for overlays and evaluation.
@@ -176,7 +138,7 @@ impl Counter {
             spinning: config.ort_spinning,
         };
         let model = Model::load(env, &model_path, options)?;
-        let side_model_chosen = config.model.is_some() || path_from_env(MODEL_ENV).is_some();
+        let side_model_chosen = config.model.is_some() || crate::model_path::side_model_from_env();
         let top = match config.top_views.model_path(side_model_chosen) {
             Some(path) => {
                 let postprocess = PostprocessParams {
@@ -215,27 +177,24 @@ impl Counter {
         }
     }
 
-    /// `name@sha256-prefix` of the model that counts the file at `path`,
-    /// stored with its observation.
-    pub fn model_id_for(&self, path: &Path) -> String {
-        self.net_for(path).model.info().id()
+    /// `name@sha256-prefix` of the model that counts images seen from
+    /// `view`, stored with each observation.
+    pub fn model_id_for(&self, view: View) -> String {
+        self.net_for(view).model.info().id()
     }
 
-    /// Whether the file at `path` is counted by the top-view model.
-    pub fn counts_as_top_view(&self, path: &Path) -> bool {
-        self.top_net_for(path).is_some()
+    /// Whether images seen from `view` are counted by the top-view model.
+    pub fn counts_as_top_view(&self, view: View) -> bool {
+        self.top_net_for(view).is_some()
     }
 
-    fn net_for(&self, path: &Path) -> Net<'_> {
-        self.top_net_for(path).unwrap_or_else(|| self.side_net())
+    fn net_for(&self, view: View) -> Net<'_> {
+        self.top_net_for(view).unwrap_or_else(|| self.side_net())
     }
 
-    fn top_net_for(&self, path: &Path) -> Option<Net<'_>> {
+    fn top_net_for(&self, view: View) -> Option<Net<'_>> {
         let (model, postprocess) = self.top.as_ref()?;
-        self.config
-            .top_views
-            .is_top_view(path)
-            .then_some(Net { model, postprocess })
+        view.is_top().then_some(Net { model, postprocess })
     }
 
     fn side_net(&self) -> Net<'_> {
@@ -260,32 +219,46 @@ impl Counter {
         &self.config
     }
 
-    /// Reads and counts the image at `path`.
-    pub fn count_path(&self, path: &Path) -> Result<CountResult, InferenceError> {
+    /// Reads and counts the image at `path`, which the caller says is
+    /// `facts` (the path only names it in errors).
+    pub fn count_path(&self, path: &Path, facts: &ImageFacts) -> Result<CountResult, InferenceError> {
         let bytes =
             std::fs::read(path).map_err(|e| InferenceError::image(path, format!("cannot read: {e}")))?;
-        self.count_bytes(path, &bytes)
+        self.count_bytes(path, facts, &bytes)
     }
 
-    /// Counts an image whose bytes the caller already read; `name` names it in errors.
-    pub fn count_bytes(&self, name: &Path, bytes: &[u8]) -> Result<CountResult, InferenceError> {
-        self.analyse_bytes(name, bytes).map(|a| a.result)
+    /// Counts an image whose bytes the caller already read; `name` names it
+    /// in errors, `facts` say which model counts it and at which zoom.
+    pub fn count_bytes(
+        &self,
+        name: &Path,
+        facts: &ImageFacts,
+        bytes: &[u8],
+    ) -> Result<CountResult, InferenceError> {
+        self.analyse_bytes(name, facts, bytes).map(|a| a.result)
     }
 
-    /// Decodes and analyses an image, keeping the intermediate results.
-    pub fn analyse_bytes(&self, name: &Path, bytes: &[u8]) -> Result<Analysis, InferenceError> {
+    /// Decodes and analyses an image, keeping the intermediate results. The
+    /// format is told by the bytes; `name` only names the image in errors.
+    pub fn analyse_bytes(
+        &self,
+        name: &Path,
+        facts: &ImageFacts,
+        bytes: &[u8],
+    ) -> Result<Analysis, InferenceError> {
         let t0 = Instant::now();
         let img = decode_rgb(name, bytes, &self.config.limits)?;
         let decode_ms = ms(t0);
-        let zoom = camera_zoom_for(name, &self.config.camera_zoom_rules, self.config.camera_zoom);
-        let mut analysis = self.analyse_with(self.net_for(name), &img, zoom)?;
+        let zoom = facts.camera_zoom.unwrap_or(self.config.camera_zoom);
+        let mut analysis = self.analyse_with(self.net_for(facts.view), &img, zoom)?;
         analysis.result.ms.decode = decode_ms;
         analysis.result.ms.total += decode_ms;
         Ok(analysis)
     }
 
-    /// Analyses an already decoded image with the configured camera zoom
-    /// (the file-name rules need a name: see [`Counter::analyse_bytes`]).
+    /// Analyses an already decoded side view with the configured camera zoom
+    /// (a station's pinned zoom comes with [`ImageFacts`]: see
+    /// [`Counter::analyse_bytes`]).
     pub fn analyse_image(&self, img: &RgbImage) -> Result<Analysis, InferenceError> {
         self.analyse_image_at(img, self.config.camera_zoom)
     }

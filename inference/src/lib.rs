@@ -19,6 +19,7 @@
 //! chamber's back panel, so a zoomed frame is counted at the contract's scale.
 //!
 //! [`Counter`] ties the stages together; the daemon and the CLI only use it.
+//! It reads no file names: the caller says what an image is ([`ImageFacts`]).
 
 pub mod attachment;
 pub mod camera_scale;
@@ -26,7 +27,9 @@ pub mod counter;
 pub mod decode;
 pub mod error;
 pub mod flip;
+pub mod image;
 pub mod model;
+pub mod model_path;
 pub mod overlay;
 pub mod panoptic;
 pub mod pieces;
@@ -34,7 +37,6 @@ pub mod postprocess;
 pub mod region;
 pub mod result;
 pub mod runtime;
-pub mod station;
 pub mod stitch;
 pub mod tiling;
 pub mod tips;
@@ -43,4 +45,5 @@ pub mod zoom;
 
 pub use counter::{Counter, CounterConfig};
 pub use error::InferenceError;
+pub use image::{ImageFacts, View};
 pub use result::{CountResult, Instance, StageTimings};

@@ -4,7 +4,7 @@
 //! tips marked (white-ringed dots, models with a tip output), the count
 //! written in the corner.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use font8x8::UnicodeFonts;
 use image::{Rgb, RgbImage};
@@ -123,15 +123,6 @@ pub fn render_encoded(
     ))
 }
 
-/// Where an overlay of `image` is written: `DIR/<image stem>.<kind>.png`.
-pub fn output_path(dir: &Path, image: &Path, kind: &str) -> PathBuf {
-    let stem = image
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "image".into());
-    dir.join(format!("{stem}.{kind}.png"))
-}
-
 /// The colour of leaf instance `id`: hues a golden ratio apart, so that
 /// neighbouring numbers (often neighbouring leaves in the whorl) are far apart.
 pub fn leaf_colour(id: u32) -> [u8; 3] {
@@ -236,18 +227,5 @@ mod tests {
             assert!(img.pixels().any(|p| p.0 == [other; 3]), "background {bg}");
             assert_eq!(img.get_pixel(20, 11).0, [0; 3], "the edge beyond the arm's end");
         }
-    }
-
-    #[test]
-    fn an_overlay_is_named_after_its_image_and_kind() {
-        let dir = Path::new("out");
-        assert_eq!(
-            output_path(dir, Path::new("in/plant_SV_108.jpg"), "tips"),
-            dir.join("plant_SV_108.tips.png")
-        );
-        assert_eq!(
-            output_path(dir, Path::new(""), "overlay"),
-            dir.join("image.overlay.png")
-        );
     }
 }

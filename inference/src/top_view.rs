@@ -3,29 +3,19 @@
 //! The side-view model never saw a plant from above and misses about five
 //! leaves of every top view (models/MODEL.md). A model trained on top views
 //! alone counts them; the side views keep the model their numbers were
-//! measured with. Which images are top views is told by their file names, as
-//! the facility names them (LemnaTec's `..._Vis_TV_90.png`) and as
-//! `phyllo-gen` does (`p000012_top.png`).
+//! measured with. Which images are top views is the caller's to say
+//! ([`crate::image::ImageFacts`]): the daemon reads it from the file name by
+//! its `[names]` patterns, once, where it parses the name.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use crate::counter::{path_from_env, shipped_model_candidates};
-use crate::station::glob_match;
-
-/// Environment variable naming the default top-view model file.
-pub const TOP_MODEL_ENV: &str = "PHYLLO_TOP_MODEL";
-
-/// File name of the shipped top-view model, beside the side-view model.
-pub const TOP_MODEL_FILE: &str = "phyllo-top.onnx";
+pub use crate::model_path::{default_top_model_path, TOP_MODEL_ENV, TOP_MODEL_FILE};
 
 /// NMS window of the shipped top-view model, in output pixels, chosen with
 /// its centre threshold.
 pub const DEFAULT_TOP_NMS_KERNEL: u32 = 3;
-
-/// File-name patterns of top views: LemnaTec's and phyllo-gen's.
-pub const DEFAULT_TOP_VIEW_FILES: [&str; 2] = ["*_TV_*", "*_top.*"];
 
 /// Centre threshold of the shipped top-view model, chosen on the top views
 /// of the calibration set `calib-top-s700301` (models/MODEL.md).
@@ -76,15 +66,12 @@ impl From<TopModel> for String {
     }
 }
 
-/// How top views are told and counted.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// How top views are counted.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TopViewConfig {
     /// The model that counts them.
     pub model: TopModel,
-    /// File-name patterns (`*` and `?` wildcards, on the name without its
-    /// folders) of top views; any match makes one.
-    pub files: Vec<String>,
     /// The top-view model's centre threshold; `None` takes
     /// [`DEFAULT_TOP_CENTER_THRESHOLD`].
     pub center_threshold: Option<f32>,
@@ -94,24 +81,7 @@ pub struct TopViewConfig {
     pub nms_kernel: Option<u32>,
 }
 
-impl Default for TopViewConfig {
-    fn default() -> Self {
-        Self {
-            model: TopModel::Default,
-            files: DEFAULT_TOP_VIEW_FILES.map(String::from).to_vec(),
-            center_threshold: None,
-            nms_kernel: None,
-        }
-    }
-}
-
 impl TopViewConfig {
-    /// Whether the file at `path` is a top view.
-    pub fn is_top_view(&self, path: &Path) -> bool {
-        let name = path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default();
-        self.files.iter().any(|p| glob_match(p, &name))
-    }
-
     /// The top-view model file to load, if any. `side_model_chosen` says
     /// that the side-view model was named (in the configuration or by
     /// `$PHYLLO_MODEL`): a model under study then counts every view, unless
@@ -136,32 +106,9 @@ impl TopViewConfig {
     }
 }
 
-/// The default top-view model: `$PHYLLO_TOP_MODEL`, then
-/// `../share/phyllo/phyllo-top.onnx` beside the executable, then
-/// `models/phyllo-top.onnx` in this source tree; `None` when none exists
-/// (the side-view model then counts top views too).
-pub fn default_top_model_path() -> Option<PathBuf> {
-    path_from_env(TOP_MODEL_ENV).or_else(|| {
-        shipped_model_candidates(TOP_MODEL_FILE)
-            .into_iter()
-            .find(|p| p.is_file())
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn facility_and_generator_top_views_are_told_by_name() {
-        let c = TopViewConfig::default();
-        assert!(c.is_top_view(Path::new("/drop/P1_2018-04-20_10-02-00_Vis_TV_90.png")));
-        assert!(c.is_top_view(Path::new("data/images/p000012_top.png")));
-        assert!(!c.is_top_view(Path::new("/drop/P1_2018-04-20_10-02-00_Vis_SV_90.png")));
-        assert!(!c.is_top_view(Path::new("data/images/p000012_108.png")));
-        // Only the file name counts, not the folders it lies in.
-        assert!(!c.is_top_view(Path::new("/x_TV_1/p000012_36.png")));
-    }
 
     #[test]
     fn a_side_model_named_by_hand_counts_every_view() {

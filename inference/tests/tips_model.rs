@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use phyllo_inference::counter::Analysis;
 use phyllo_inference::postprocess::PostprocessParams;
 use phyllo_inference::tips::CountRule;
-use phyllo_inference::{Counter, CounterConfig};
+use phyllo_inference::{Counter, CounterConfig, ImageFacts};
 
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -39,7 +39,8 @@ fn sample() -> (PathBuf, Vec<u8>) {
 
 fn analyse(c: &Counter) -> Analysis {
     let (path, bytes) = sample();
-    c.analyse_bytes(&path, &bytes).expect("counts")
+    c.analyse_bytes(&path, &ImageFacts::side(), &bytes)
+        .expect("counts")
 }
 
 #[test]

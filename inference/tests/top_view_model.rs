@@ -1,12 +1,13 @@
 //! Top views go to their own model, through ONNX Runtime with real models:
-//! the file name alone decides, the side views count exactly as the side
-//! model alone counts them, and every count names the model that made it.
+//! the view the caller hands in alone decides (the crate reads no file
+//! names), the side views count exactly as the side model alone counts them,
+//! and every count names the model that made it.
 
 use std::path::{Path, PathBuf};
 
 use phyllo_inference::postprocess::PostprocessParams;
 use phyllo_inference::top_view::{TopModel, TopViewConfig};
-use phyllo_inference::{Counter, CounterConfig};
+use phyllo_inference::{Counter, CounterConfig, ImageFacts, View};
 
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -30,12 +31,12 @@ fn counter(side: &str, top: TopModel) -> Counter {
     .expect("the models load")
 }
 
-/// A real frame's bytes, and names that make it a side view and a top view.
-fn frame() -> (Vec<u8>, PathBuf, PathBuf) {
-    let side = repo().join("docs/samples/402-204-N132-WW-1_2019-05-28_11-13-20.830_Vis_SV_108.jpg");
-    let bytes = std::fs::read(&side).expect("sample image");
-    let top = side.with_file_name("402-204-N132-WW-1_2019-05-28_11-13-20.830_Vis_TV_90.jpg");
-    (bytes, side, top)
+/// A real frame's bytes, and what makes it a side view and a top view.
+fn frame() -> (Vec<u8>, ImageFacts, ImageFacts) {
+    let path = repo().join("docs/samples/402-204-N132-WW-1_2019-05-28_11-13-20.830_Vis_SV_108.jpg");
+    let bytes = std::fs::read(&path).expect("sample image");
+    let side = ImageFacts::of_view(View::Side { angle: Some(108) });
+    (bytes, side, ImageFacts::top())
 }
 
 #[test]
@@ -60,8 +61,10 @@ fn top_views_are_counted_by_the_top_model_and_side_views_as_before() {
     })
     .expect("the untrained model loads");
 
-    let count = |c: &Counter, name: &Path| {
-        let r = c.count_bytes(name, &bytes).expect("counts");
+    let count = |c: &Counter, facts: &ImageFacts| {
+        let r = c
+            .count_bytes(Path::new("frame.jpg"), facts, &bytes)
+            .expect("counts");
         (r.leaf_count, r.instances.len(), r.tiles)
     };
     assert_eq!(count(&pair, &side), count(&side_alone, &side));
@@ -72,9 +75,9 @@ fn top_views_are_counted_by_the_top_model_and_side_views_as_before() {
         "the two models must count this frame differently for the test to tell them apart"
     );
 
-    assert!(pair.counts_as_top_view(&top) && !pair.counts_as_top_view(&side));
-    assert_eq!(pair.model_id_for(&side), side_alone.model_id());
-    assert_eq!(pair.model_id_for(&top), top_alone.model_id());
+    assert!(pair.counts_as_top_view(top.view) && !pair.counts_as_top_view(side.view));
+    assert_eq!(pair.model_id_for(side.view), side_alone.model_id());
+    assert_eq!(pair.model_id_for(top.view), top_alone.model_id());
     assert_eq!(
         pair.model_id(),
         format!("{}+{}", side_alone.model_id(), top_alone.model_id())
@@ -86,8 +89,8 @@ fn a_side_model_named_by_hand_counts_top_views_too() {
     let (_, _, top) = frame();
     let c = counter("phyllo.onnx", TopModel::Default);
     assert!(c.top_model_info().is_none());
-    assert!(!c.counts_as_top_view(&top));
-    assert_eq!(c.model_id_for(&top), c.model_id());
+    assert!(!c.counts_as_top_view(top.view));
+    assert_eq!(c.model_id_for(top.view), c.model_id());
 }
 
 #[test]

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context;
-use phyllo_inference::{overlay, Counter, InferenceError};
+use phyllo_inference::{Counter, ImageFacts, InferenceError};
 use serde_json::json;
 
 use super::counter_args::CounterArgs;
@@ -48,14 +48,17 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut failed = 0usize;
     let stdout = std::io::stdout();
     for path in &args.images {
-        let outcome = count_one(&counter, path, args.overlay.as_deref());
+        // Loose files, not the drop directory's: no `[names]` to read them
+        // by, so the evaluation's file-name rule says what each image is.
+        let facts = phyllo_evaluation::image_names::facts_for(path);
+        let outcome = count_one(&counter, path, &facts, args.overlay.as_deref());
         let mut out = stdout.lock();
         match outcome {
             Ok(r) => {
                 if args.json {
                     let mut v = serde_json::to_value(&r)?;
                     v["file"] = json!(path);
-                    v["model"] = json!(counter.model_id_for(path));
+                    v["model"] = json!(counter.model_id_for(facts.view));
                     writeln!(out, "{v}")?;
                 } else {
                     // With a tip model, the tips found beside the leaves
@@ -97,16 +100,17 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 fn count_one(
     counter: &Counter,
     path: &Path,
+    facts: &ImageFacts,
     overlay_dir: Option<&Path>,
 ) -> Result<phyllo_inference::CountResult, InferenceError> {
     if path.is_dir() {
         return Err(InferenceError::image(path, "is a directory, not an image file"));
     }
     let bytes = std::fs::read(path).map_err(|e| InferenceError::image(path, format!("cannot read: {e}")))?;
-    let analysis = counter.analyse_bytes(path, &bytes)?;
+    let analysis = counter.analyse_bytes(path, facts, &bytes)?;
     if let Some(dir) = overlay_dir {
         let drawn = render_overlay(counter, path, &bytes, &analysis)?;
-        let out = overlay::output_path(dir, path, "overlay");
+        let out = phyllo_evaluation::image_names::overlay_path(dir, path, "overlay");
         drawn
             .save(&out)
             .map_err(|e| InferenceError::image(&out, format!("cannot write overlay: {e}")))?;

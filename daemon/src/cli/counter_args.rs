@@ -164,7 +164,6 @@ impl CounterArgs {
                 model: self.top_model.clone(),
                 center_threshold: self.top_center_threshold,
                 nms_kernel: self.top_nms_kernel,
-                ..TopViewConfig::default()
             },
             ..CounterConfig::default()
         })

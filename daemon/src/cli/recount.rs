@@ -5,8 +5,8 @@
 use std::process::ExitCode;
 
 use super::ConfigArg;
+use crate::counting::onnx_counter;
 use crate::ops::recount::recount;
-use crate::pipeline::counting::onnx_counter;
 use crate::store::{Store, WritersLock};
 
 /// Arguments of `phyllo recount`.

@@ -5,6 +5,8 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use super::ConfigArg;
+use crate::counting::{counter_config, OnnxCounter};
+use crate::domain::names::{NamePatterns, View};
 use crate::domain::review::{rank, NIGHTLY};
 use crate::sinks::review_sheet;
 use crate::store::Store;
@@ -98,8 +100,8 @@ fn draw_overlays(
     items: &[review_sheet::Item],
     dir: &std::path::Path,
 ) -> anyhow::Result<(usize, usize)> {
-    let counter =
-        phyllo_inference::Counter::new(crate::pipeline::counting::counter_config(&config.inference))?;
+    let counter = OnnxCounter::new(counter_config(&config.inference))?;
+    let names = NamePatterns::from_config(&config.names)?;
     let (mut drawn, mut missing) = (0, 0);
     for (i, it) in items.iter().enumerate() {
         let out_dir = dir.join(format!("{:02}-{}", i + 1, sanitize(&it.doubt.plant)));
@@ -114,8 +116,14 @@ fn draw_overlays(
                 }
                 Err(e) => return Err(e).with_context(|| format!("reading {}", path.display())),
             };
-            let analysis = counter.analyse_bytes(&path, &bytes)?;
-            let picture = super::count::render_overlay(&counter, &path, &bytes, &analysis)?;
+            // The name is read here, once, as the service read it; a name
+            // the patterns no longer read is counted as a side view.
+            let view = names
+                .parse(std::path::Path::new(rel))
+                .map_or(View::Other(String::new()), |n| n.view);
+            let facts = counter.facts(&path, &view);
+            let analysis = counter.inner().analyse_bytes(&path, &facts, &bytes)?;
+            let picture = super::count::render_overlay(counter.inner(), &path, &bytes, &analysis)?;
             // Facility layouts reuse file names across folders (`0_0_0.png`),
             // so the whole relative path names the overlay.
             let stem = std::path::Path::new(rel).with_extension("");

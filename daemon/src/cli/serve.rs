@@ -8,7 +8,7 @@ use tokio::sync::watch;
 
 use super::ConfigArg;
 use crate::config::Config;
-use crate::pipeline::counting::LeafCounter;
+use crate::counting::LeafCounter;
 
 /// Arguments of `phyllo serve`.
 #[derive(Debug, clap::Args)]
@@ -19,7 +19,7 @@ pub struct Args {
 
 /// Builds the model's counter from the config.
 pub fn make_counter(cfg: &Config) -> anyhow::Result<Arc<dyn LeafCounter>> {
-    crate::pipeline::counting::onnx_counter(&cfg.inference)
+    crate::counting::onnx_counter(&cfg.inference)
 }
 
 /// Exit status after SIGHUP (`EX_TEMPFAIL`): the service stopped cleanly and

@@ -156,11 +156,11 @@ pub struct InferenceConfig {
     /// the chamber's back panel (default), `"contract"`, or a number.
     pub camera_zoom: phyllo_inference::camera_scale::CameraZoom,
     /// Per-station zooms by file-name pattern; the first match wins.
-    pub camera_zoom_rules: Vec<phyllo_inference::station::CameraZoomRule>,
-    /// `[inference.top_views]`: which file names are top views (`files`),
-    /// the model that counts them (`model`: `"default"`, `"none"` or a file)
-    /// and its `center_threshold`.
-    pub top_views: phyllo_inference::top_view::TopViewConfig,
+    pub camera_zoom_rules: Vec<crate::domain::image_facts::CameraZoomRule>,
+    /// `[inference.top_views]`: the model that counts top views (`model`:
+    /// `"default"`, `"none"` or a file), its `center_threshold` and
+    /// `nms_kernel`, and the deprecated `files` (`[names]` tells top views).
+    pub top_views: crate::domain::image_facts::TopViewsConfig,
 }
 
 impl Default for InferenceConfig {
@@ -460,6 +460,13 @@ fn check_top_views(cfg: &InferenceConfig) -> anyhow::Result<()> {
     if let Some(i) = top.files.iter().position(String::is_empty) {
         bail!("inference.top_views.files[{i}]: an empty pattern matches no file name; use e.g. \"*_TV_*\"");
     }
+    if let Some(files) = top.legacy_files() {
+        tracing::warn!(
+            "inference.top_views.files = {files:?} is deprecated: the [names] patterns tell top views \
+             (their `kind` group); until the key is removed these patterns still decide which images \
+             the top-view model counts"
+        );
+    }
     if let Some(t) = top
         .center_threshold
         .filter(|t| !(t.is_finite() && *t > 0.0 && *t < 1.0))
@@ -503,7 +510,7 @@ mod tests {
         let cfg = Config::parse(&format!("{base}model = \"none\"\nfiles = [\"*_TOP_*\"]\n")).unwrap();
         assert_eq!(cfg.inference.top_views.model, TopModel::Off);
         assert_eq!(cfg.inference.top_views.files, ["*_TOP_*"]);
-        let counter = crate::pipeline::counting::counter_config(&cfg.inference);
+        let counter = crate::counting::counter_config(&cfg.inference);
         assert_eq!(counter.top_views, cfg.inference.top_views);
         let default = Config::parse("drop_dir = \"/d\"\ndatabase = \"/db\"\n").unwrap();
         assert_eq!(default.inference.top_views.model, TopModel::Default);
@@ -529,7 +536,7 @@ mod tests {
             cfg.inference.camera_zoom_rules[0].camera_zoom,
             CameraZoom::Fixed(2.0)
         );
-        let counter = crate::pipeline::counting::counter_config(&cfg.inference);
+        let counter = crate::counting::counter_config(&cfg.inference);
         assert_eq!(counter.camera_zoom_rules, cfg.inference.camera_zoom_rules);
         let bad = text.replace("camera_zoom = 2", "camera_zoom = 0.1");
         let err = format!("{:#}", Config::parse(&bad).unwrap_err());

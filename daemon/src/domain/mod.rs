@@ -9,6 +9,7 @@ pub mod climate_zone;
 pub mod forecast;
 pub mod group_compare;
 pub mod groups;
+pub mod image_facts;
 pub mod leaf_site;
 pub mod least_squares;
 pub mod names;

@@ -24,6 +24,18 @@ pub fn mtime_string(meta: &std::fs::Metadata) -> String {
     }
 }
 
+/// Whether an error says the path is longer than the system allows
+/// (`ENAMETOOLONG`: 4096 bytes on Linux). Such a file or folder cannot be
+/// read by its path; it is recorded as failed, named, rather than left out.
+pub fn too_long(e: &std::io::Error) -> bool {
+    e.raw_os_error() == Some(libc::ENAMETOOLONG)
+}
+
+/// Whether the file can be opened for reading now.
+pub fn readable(path: &std::path::Path) -> bool {
+    std::fs::File::open(path).is_ok()
+}
+
 /// Hex SHA-256.
 pub fn sha256_hex(bytes: &[u8]) -> String {
     Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()

@@ -8,8 +8,8 @@
 
 use std::path::Path;
 
+use crate::counting::LeafCounter;
 use crate::files::sha256_hex;
-use crate::pipeline::counting::LeafCounter;
 use crate::store::{CountedImage, Store};
 
 /// What a recount did.
@@ -65,7 +65,10 @@ pub fn recount(
             progress(&img, None);
             continue;
         }
-        let count = match counter.count(&path, &bytes) {
+        // Counted as the view its name was read as when it was stored: the
+        // name is not parsed again.
+        let view = crate::domain::names::View::parse(&img.view);
+        let count = match counter.count(&path, &view, &bytes) {
             Ok(c) => c,
             Err(e) => {
                 summary.failed.push((img.path.clone(), e.message));
@@ -93,9 +96,9 @@ pub fn recount(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::counting::CountError;
     use crate::domain::names::{ParsedName, View};
     use crate::domain::timeline::TimelineParams;
-    use crate::pipeline::counting::CountError;
     use crate::store::{CountRecord, FileFacts, Outcome};
 
     /// Counts the bytes' length, plus `extra`: a stand-in for a new model.
@@ -104,7 +107,7 @@ mod tests {
     }
 
     impl LeafCounter for LengthCounter {
-        fn count(&self, _name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError> {
+        fn count(&self, _name: &Path, _: &View, bytes: &[u8]) -> Result<CountRecord, CountError> {
             if bytes.starts_with(b"bad") {
                 return Err(CountError {
                     message: "not an image".into(),
@@ -147,7 +150,7 @@ mod tests {
                 view: View::Side(0),
                 pattern: "test".into(),
             };
-            let count = old.count(Path::new(rel), content.as_bytes()).unwrap();
+            let count = old.count(Path::new(rel), &name.view, content.as_bytes()).unwrap();
             store.record(&facts, Outcome::Counted(&name, &count)).unwrap();
         }
         store
@@ -220,7 +223,7 @@ mod tests {
         // The same bytes, but this counter refuses them.
         struct Refuses;
         impl LeafCounter for Refuses {
-            fn count(&self, name: &Path, _: &[u8]) -> Result<CountRecord, CountError> {
+            fn count(&self, name: &Path, _: &View, _: &[u8]) -> Result<CountRecord, CountError> {
                 Err(CountError {
                     message: format!("{}: refused", name.display()),
                     retry: false,

@@ -8,8 +8,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize};
 use std::sync::{Arc, Mutex};
 
 use crate::config::Config;
+use crate::counting::LeafCounter;
 use crate::domain::names::NamePatterns;
-use crate::pipeline::counting::LeafCounter;
 
 /// One file to process.
 #[derive(Debug, Clone)]

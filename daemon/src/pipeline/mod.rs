@@ -7,11 +7,11 @@
 //!   ─► worker (hash, names, counting off the async runtime) ─► store (one transaction per image)
 //! ```
 //!
-//! [`service`] wires the stages for `phyllo serve`; [`counting`] is the
-//! boundary with the model; [`systemd`] talks to the service manager.
+//! [`service`] wires the stages for `phyllo serve`; the boundary with the
+//! model is [`crate::counting`], shared with `phyllo recount`; [`systemd`]
+//! talks to the service manager.
 //! See `docs/ARCHITECTURE.md`.
 
-pub mod counting;
 pub mod health;
 pub mod job;
 pub mod memory;

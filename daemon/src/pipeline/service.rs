@@ -18,8 +18,8 @@ use tokio::sync::{mpsc, watch};
 use tokio::time::MissedTickBehavior;
 
 use crate::config::Config;
+use crate::counting::LeafCounter;
 use crate::files::identity::DatabaseIdentity;
-use crate::pipeline::counting::LeafCounter;
 use crate::pipeline::health;
 use crate::pipeline::source::intake::{Intake, ScanRequest};
 use crate::pipeline::source::watch::Watch;
@@ -319,7 +319,7 @@ fn spawn_scan(
             ) {
                 (Ok(s), Some(rel), Ok(meta)) => s
                     .is_known(&rel, meta.len(), &crate::files::mtime_string(&meta), || {
-                        crate::pipeline::source::intake::readable(path)
+                        crate::files::readable(path)
                     })
                     .unwrap_or(false),
                 _ => false,

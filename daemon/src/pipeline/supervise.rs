@@ -96,14 +96,15 @@ mod tests {
     use std::sync::Mutex;
 
     use crate::config::Config;
-    use crate::pipeline::counting::{CountError, LeafCounter};
+    use crate::counting::{CountError, LeafCounter};
+    use crate::domain::names::View;
     use crate::pipeline::job::Stats;
     use crate::store::CountRecord;
 
     struct NeverCalled;
 
     impl LeafCounter for NeverCalled {
-        fn count(&self, _: &Path, _: &[u8]) -> Result<CountRecord, CountError> {
+        fn count(&self, _: &Path, _: &View, _: &[u8]) -> Result<CountRecord, CountError> {
             unreachable!("the test never counts")
         }
         fn model_id(&self) -> String {

@@ -112,7 +112,7 @@ fn read_inside(root: &Path, job: &Job) -> Read {
                 _ => Read::Vanished,
             };
         }
-        Err(e) if crate::pipeline::source::too_long(&e) => {
+        Err(e) if crate::files::too_long(&e) => {
             return refuse(
                 format!(
                     "{name}: its path is {} bytes, longer than the {} the system can open: \
@@ -325,7 +325,11 @@ fn count_and_record(
     name: &ParsedName,
     bytes: &[u8],
 ) -> anyhow::Result<Recorded> {
-    let counted = std::panic::catch_unwind(AssertUnwindSafe(|| ctx.counter.count(&job.path, bytes)));
+    // The view parsed from the name goes along: the model is never left to
+    // work it out from the file name again.
+    let counted = std::panic::catch_unwind(AssertUnwindSafe(|| {
+        ctx.counter.count(&job.path, &name.view, bytes)
+    }));
     let (error, retry) = match counted {
         Ok(Ok(count)) => {
             let r = store.record(facts, Outcome::Counted(name, &count))?;

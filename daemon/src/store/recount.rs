@@ -23,6 +23,8 @@ pub struct CountedImage {
     pub leaf_count: u32,
     /// Settings it was counted with (JSON text), `None` before schema 2.
     pub settings: Option<String>,
+    /// The view its name was read as when it was counted (`SV_108`, `TV_90`).
+    pub view: String,
 }
 
 impl Store {
@@ -30,7 +32,7 @@ impl Store {
     /// in order of plant and time taken.
     pub fn counted_images(&self, plant: Option<&str>) -> anyhow::Result<Vec<CountedImage>> {
         let mut stmt = self.conn.prepare(
-            "SELECT i.id, i.path, i.sha256, p.name, o.leaf_count, o.settings
+            "SELECT i.id, i.path, i.sha256, p.name, o.leaf_count, o.settings, o.view
              FROM images i
              JOIN observations o ON o.image_id = i.id
              JOIN plants p ON p.id = o.plant_id
@@ -46,6 +48,7 @@ impl Store {
                     plant: r.get(3)?,
                     leaf_count: r.get(4)?,
                     settings: r.get(5)?,
+                    view: r.get(6)?,
                 })
             })?
             .collect::<Result<_, _>>()?;

@@ -6,7 +6,8 @@
 use std::path::Path;
 use std::time::Duration;
 
-use phyllo::pipeline::counting::{CountError, LeafCounter};
+use phyllo::counting::{CountError, LeafCounter};
+use phyllo::domain::names::View;
 use phyllo::store::CountRecord;
 
 /// Reads "leaves=N ... END" files. Anything else (a partial file included) is an
@@ -22,7 +23,7 @@ impl TextCounter {
 }
 
 impl LeafCounter for TextCounter {
-    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError> {
+    fn count(&self, name: &Path, _: &View, bytes: &[u8]) -> Result<CountRecord, CountError> {
         let text = String::from_utf8_lossy(bytes);
         let n = text
             .strip_prefix("leaves=")
@@ -54,9 +55,9 @@ impl LeafCounter for TextCounter {
 pub struct SlowCounter(pub Duration);
 
 impl LeafCounter for SlowCounter {
-    fn count(&self, name: &Path, bytes: &[u8]) -> Result<CountRecord, CountError> {
+    fn count(&self, name: &Path, view: &View, bytes: &[u8]) -> Result<CountRecord, CountError> {
         std::thread::sleep(self.0);
-        TextCounter.count(name, bytes)
+        TextCounter.count(name, view, bytes)
     }
 
     fn model_id(&self) -> String {

@@ -165,10 +165,13 @@ impl Intake {
             let mtime = match super::stat_or_link(&path) {
                 Ok(m) => mtime_string(&m),
                 // As the worker records it: no size, no time.
-                Err(e) if super::too_long(&e) => String::new(),
+                Err(e) if crate::files::too_long(&e) => String::new(),
                 Err(_) => continue,
             };
-            match self.store.is_known(&rel, p.size, &mtime, || readable(&path)) {
+            match self
+                .store
+                .is_known(&rel, p.size, &mtime, || crate::files::readable(&path))
+            {
                 Ok(true) => continue,
                 Ok(false) => {}
                 Err(e) => tracing::warn!("database lookup for {rel}: {e:#}"),
@@ -198,18 +201,13 @@ impl Intake {
     }
 }
 
-/// Whether the file can be opened for reading now.
-pub(crate) fn readable(path: &std::path::Path) -> bool {
-    std::fs::File::open(path).is_ok()
-}
-
 fn stat(path: &std::path::Path) -> (u64, Option<SystemTime>) {
     match super::stat_or_link(path) {
         Ok(m) if m.is_file() || m.file_type().is_symlink() => {
             (m.len(), m.modified().ok().or(Some(SystemTime::UNIX_EPOCH)))
         }
         // Cannot be read by its path, but there: the worker records why.
-        Err(e) if super::too_long(&e) => (0, Some(SystemTime::UNIX_EPOCH)),
+        Err(e) if crate::files::too_long(&e) => (0, Some(SystemTime::UNIX_EPOCH)),
         _ => (0, None),
     }
 }

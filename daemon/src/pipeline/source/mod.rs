@@ -36,13 +36,6 @@ pub enum Candidate {
 /// followed (a loop, a missing target) the link's own metadata. Such links
 /// still reach a worker, which records why they were not read instead of
 /// leaving them silently unexplained.
-/// Whether an error says the path is longer than the system allows
-/// (`ENAMETOOLONG`: 4096 bytes on Linux). Such a file or folder cannot be
-/// read by its path; it is recorded as failed, named, rather than left out.
-pub fn too_long(e: &std::io::Error) -> bool {
-    e.raw_os_error() == Some(libc::ENAMETOOLONG)
-}
-
 /// Metadata of `path`, following a symlink, or of the link itself when its
 /// target cannot be read.
 pub fn stat_or_link(path: &Path) -> std::io::Result<std::fs::Metadata> {

@@ -15,7 +15,7 @@ pub fn scan(filter: &Filter, dir: &Path) -> Vec<PathBuf> {
     while let Some(d) = stack.pop() {
         let entries = match std::fs::read_dir(&d) {
             Ok(e) => e,
-            Err(e) if super::too_long(&e) => {
+            Err(e) if crate::files::too_long(&e) => {
                 out.push(d);
                 continue;
             }
@@ -43,7 +43,7 @@ pub fn scan(filter: &Filter, dir: &Path) -> Vec<PathBuf> {
                     } else {
                         filter.wants_file(&path)
                     };
-                    if (link || super::too_long(&e)) && wanted {
+                    if (link || crate::files::too_long(&e)) && wanted {
                         out.push(path);
                     }
                     continue;
