@@ -9,7 +9,6 @@ use std::sync::{Arc, Mutex};
 
 use crate::config::Config;
 use crate::counting::LeafCounter;
-use crate::domain::names::NamePatterns;
 
 /// One file to process.
 #[derive(Debug, Clone)]
@@ -45,8 +44,6 @@ pub struct Stats {
 pub struct WorkerCtx {
     /// Configuration.
     pub config: Config,
-    /// File-name patterns.
-    pub names: NamePatterns,
     /// The model.
     pub counter: Arc<dyn LeafCounter>,
     /// Shared counters.

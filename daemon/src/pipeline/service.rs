@@ -42,7 +42,6 @@ pub async fn run(
     counter: Arc<dyn LeafCounter>,
     mut shutdown: watch::Receiver<bool>,
 ) -> anyhow::Result<()> {
-    let names = config.rules().names.clone();
     // Held until the service returns: one service per database.
     let _lock = DatabaseLock::acquire(&config.database, "phyllo serve")?;
     let mut status_store = Store::open(
@@ -58,7 +57,6 @@ pub async fn run(
     let (job_tx, job_rx) = mpsc::channel(config.inference.queue_capacity);
     let ctx = Arc::new(WorkerCtx {
         config: config.clone(),
-        names,
         counter,
         stats: stats.clone(),
         in_flight: in_flight.clone(),

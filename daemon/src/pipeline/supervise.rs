@@ -120,7 +120,6 @@ mod tests {
         ))
         .unwrap();
         Arc::new(WorkerCtx {
-            names: config.rules().names.clone(),
             config,
             counter: Arc::new(NeverCalled),
             stats: Arc::new(Stats::default()),

@@ -215,10 +215,10 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
     };
     let rel = Path::new(&job.rel);
     let now = chrono::Local::now().naive_local();
-    let parsed = ctx
-        .names
+    let names = &ctx.config.rules().names;
+    let parsed = names
         .parse(rel)
-        .and_then(|name| ctx.names.check_time(rel, name.taken_at, now).map(|()| name));
+        .and_then(|name| names.check_time(rel, name.taken_at, now).map(|()| name));
     let reused = match store.precheck(&facts, parsed.as_ref().ok())? {
         Precheck::Skip(why) => {
             tracing::debug!("skip: {why}");
