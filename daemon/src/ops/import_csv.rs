@@ -362,4 +362,26 @@ mod tests {
             "{err}"
         );
     }
+
+    /// Issue 57, item 9: a sheet phyllo wrote (formula-like text prefixed
+    /// with `'`) reads back as it was before it was written.
+    #[test]
+    fn a_neutralised_cell_reads_back_as_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("review.csv");
+        crate::sinks::export::write_csv(&p, |w| {
+            w.write_record(["plant", "timestamp", "view", "leaf_count"])?;
+            w.write_record(["=HYPERLINK(\"http://x\")", "2018-04-20", "SV_108", "9"])?;
+            w.write_record(["-P2", "2018-04-20", "SV_108", "8"])?;
+            Ok(2)
+        })
+        .unwrap();
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert!(
+            text.contains("\"'=HYPERLINK(\"\"http://x\"\")\",") && text.contains("'-P2,"),
+            "{text}"
+        );
+        let plants: Vec<String> = read_rows(&p).unwrap().rows.into_iter().map(|r| r.0).collect();
+        assert_eq!(plants, ["=HYPERLINK(\"http://x\")", "-P2"]);
+    }
 }
