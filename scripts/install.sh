@@ -78,5 +78,11 @@ else
   install -m 0644 "$root/systemd/phyllo.toml.example" /etc/phyllo/phyllo.toml
   echo "wrote /etc/phyllo/phyllo.toml: set drop_dir and database, then: systemctl enable --now phyllo.service"
 fi
-systemctl daemon-reload
-echo "installed the units in /etc/systemd/system (enable them as docs/daemon.md says)"
+if [ -d /run/systemd/system ]; then
+  systemctl daemon-reload
+  echo "installed the units in /etc/systemd/system (enable them as docs/daemon.md says)"
+else
+  # A container or an image build: everything is installed; the units load
+  # when systemd next starts.
+  echo "installed the units in /etc/systemd/system; systemd is not running here, so no daemon-reload (they load at its next start)"
+fi

@@ -21,7 +21,7 @@ if [[ "${PHYLLO_SKIP_PYTHON:-0}" != 1 ]]; then
   venv=models/.venv
   stamp="$venv/.requirements"
   if ! cmp -s models/requirements.txt "$stamp" 2>/dev/null; then
-    echo "== training environment ($venv, from models/requirements.txt)"
+    echo "== training environment ($venv, from models/requirements.txt): pip installs torch and the rest, about 5.5 GB; a few quiet minutes the first time"
     python3 -m venv "$venv"
     "$venv/bin/python" -m pip install -q --no-cache-dir --disable-pip-version-check -r models/requirements.txt
     cp models/requirements.txt "$stamp"

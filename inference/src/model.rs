@@ -105,7 +105,8 @@ impl Model {
             return Err(InferenceError::model(
                 path,
                 format!(
-                    "does not follow phyllo contract v{}: {}",
+                    "does not follow phyllo contract v{}: {} (the contract is models/contract.toml; \
+                     export the model with models/phyllo_train/export.py, which writes it in)",
                     contract.version,
                     problems.join("; ")
                 ),

@@ -68,6 +68,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&rows)?);
         return Ok(());
     }
+    if rows.is_empty() {
+        println!(
+            "no forecast: {}",
+            if timelines.is_empty() {
+                format!("no plant in {} has a timeline yet", config.database.display())
+            } else {
+                format!(
+                    "none of the {} plants has three dated leaves (or a forward rate) yet",
+                    timelines.len()
+                )
+            }
+        );
+        return Ok(());
+    }
     println!("plant\tleaves\tleaf\twhen\thow");
     for d in &rows {
         println!(

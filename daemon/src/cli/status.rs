@@ -59,6 +59,9 @@ fn check(args: &Args) -> anyhow::Result<(String, u8)> {
 struct Report {
     /// The service's self-report.
     svc: BTreeMap<String, String>,
+    /// The `--check` line: every problem `--check` finds, shown by plain
+    /// `status` too (a missing drop directory must not look healthy).
+    check: String,
     counts: ImageCounts,
     timeline: TimelineSummary,
     last: Option<LastImage>,
@@ -86,6 +89,7 @@ impl Report {
     /// Reads it from the store, the snapshots and the disk.
     fn read(config: &Config, store: &Store) -> anyhow::Result<Report> {
         let svc = store.service()?;
+        let check = check_line(&findings(&health(config, store)?)).0;
         let counts = store.image_counts()?;
         let timeline = store.timeline_summary()?;
         let last = store.last_image()?;
@@ -106,6 +110,7 @@ impl Report {
         let behind = store.temperature_logs_behind(STALE_NIGHTLY_HOURS as f64)?;
         Ok(Report {
             svc,
+            check,
             counts,
             timeline,
             last,
@@ -135,6 +140,7 @@ fn show(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     print_service(&config, &r, &state);
+    println!("check:     {}", r.check);
     for line in count_lines(&r.counts, &r.timeline, &r.uncounted) {
         println!("{line}");
     }
@@ -161,6 +167,7 @@ fn show(args: Args) -> anyhow::Result<()> {
 fn json(config: &Config, r: &Report, state: &str) -> serde_json::Value {
     serde_json::json!({
         "state": state,
+        "check": r.check,
         "service": r.svc,
         "images": r.counts,
         "timeline": r.timeline,

@@ -159,6 +159,41 @@ struct Sources {
     watcher: Option<Watch>,
     /// Set while a scan of the whole drop directory runs ([`spawn_scan`]).
     scanning: Arc<AtomicBool>,
+    /// Spaces out the warning about a drop directory that cannot be watched.
+    quiet: WarnBackoff,
+}
+
+/// When to say again that the drop directory cannot be watched: at once,
+/// then once a minute for its first hour, then hourly (the watch is retried
+/// every tick; a warning every 5 s was 17,000 log lines a day).
+#[derive(Debug, Default)]
+struct WarnBackoff {
+    /// Since when it has failed, and when it was last said.
+    failing: Option<(std::time::Instant, std::time::Instant)>,
+}
+
+impl WarnBackoff {
+    /// Whether to warn about a failure now.
+    fn due(&mut self, now: std::time::Instant) -> bool {
+        match self.failing {
+            None => {
+                self.failing = Some((now, now));
+                true
+            }
+            Some((since, said)) => {
+                let every = if now - since < Duration::from_secs(3600) {
+                    Duration::from_secs(60)
+                } else {
+                    Duration::from_secs(3600)
+                };
+                let due = now - said >= every;
+                if due {
+                    self.failing = Some((since, now));
+                }
+                due
+            }
+        }
+    }
 }
 
 impl Sources {
@@ -171,13 +206,15 @@ impl Sources {
         } else {
             filter
         };
-        let watcher = start_watch(&filter, &tx);
+        let mut quiet = WarnBackoff::default();
+        let watcher = start_watch(&filter, &tx, &mut quiet);
         Ok(Sources {
             filter,
             tx,
             rx,
             watcher,
             scanning: Arc::new(AtomicBool::new(false)),
+            quiet,
         })
     }
 
@@ -231,7 +268,7 @@ impl Sources {
     fn rewatch(&mut self, config: &Config) {
         if self.watcher.as_ref().is_none_or(|w| w.is_stale()) {
             drop(self.watcher.take());
-            self.watcher = start_watch(&self.filter, &self.tx);
+            self.watcher = start_watch(&self.filter, &self.tx, &mut self.quiet);
             if self.watcher.is_some() {
                 tracing::info!(
                     "drop directory {} (re)appeared, watching and scanning it",
@@ -243,11 +280,18 @@ impl Sources {
     }
 }
 
-fn start_watch(filter: &Filter, tx: &mpsc::Sender<Candidate>) -> Option<Watch> {
+fn start_watch(filter: &Filter, tx: &mpsc::Sender<Candidate>, quiet: &mut WarnBackoff) -> Option<Watch> {
     match Watch::start(filter.clone(), tx.clone()) {
-        Ok(w) => Some(w),
+        Ok(w) => {
+            quiet.failing = None;
+            Some(w)
+        }
         Err(e) => {
-            tracing::warn!("{e:#}; retrying");
+            if quiet.due(std::time::Instant::now()) {
+                tracing::warn!("{e:#}; retrying (said again once a minute, hourly after its first hour)");
+            } else {
+                tracing::debug!("{e:#}; retrying");
+            }
             None
         }
     }
@@ -441,5 +485,24 @@ async fn report_status(
         if watchdog.is_some() {
             systemd::watchdog();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_lasting_watch_failure_is_said_once_a_minute_then_hourly() {
+        let t0 = std::time::Instant::now();
+        let at = |s: u64| t0 + Duration::from_secs(s);
+        let mut w = WarnBackoff::default();
+        // Retried every 5 s for two hours: which retries warn.
+        let said: Vec<u64> = (0..2 * 720).map(|i| i * 5).filter(|&s| w.due(at(s))).collect();
+        assert_eq!(&said[..3], [0, 60, 120]);
+        assert_eq!(said.iter().filter(|&&s| s < 3600).count(), 60, "{said:?}");
+        assert!(said.iter().filter(|&&s| s >= 3600).count() <= 2, "{said:?}");
+        w.failing = None;
+        assert!(w.due(at(7200)), "a new failure is said at once");
     }
 }

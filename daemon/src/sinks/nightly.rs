@@ -43,10 +43,12 @@ pub fn write(
     let ranked = crate::domain::review::rank(&timelines, None);
     let items = review_sheet::items(store, &ranked, crate::domain::review::NIGHTLY)?;
     let n = review_sheet::write(&dir.join("review.csv"), &items)?;
-    say(format!(
-        "review: the {n} sessions most in doubt of {}",
-        ranked.len()
-    ));
+    // "the 2 sessions most in doubt of 2" read as a riddle (issue 56 item 7).
+    say(if n == ranked.len() {
+        format!("review: {n} sessions in doubt, every one in review.csv")
+    } else {
+        format!("review: the {n} sessions most in doubt of {}", ranked.len())
+    });
     index.tables.push(("review.csv".into(), n));
     index.review = (ranked.len(), review_sheet::rows(&items));
     write_groups(config, &timelines, &dir, &mut index, say)?;

@@ -225,6 +225,11 @@ fn compartments_keep_their_own_temperature_logs() {
     );
     let status: serde_json::Value = serde_json::from_str(&ok(&["status", "-c", cfg, "--json"])).unwrap();
     assert_eq!(status["climate_behind_hours"]["hot-house"], 178.5, "{status}");
+    // Plain status and its JSON show the --check line too (issue 56 item 4).
+    let check_line = line.trim();
+    assert_eq!(status["check"], check_line, "{status}");
+    let text = ok(&["status", "-c", cfg]);
+    assert!(text.contains(&format!("\ncheck:     {check_line}\n")), "{text}");
     ok(&["import", "-c", cfg, "--undo", "late.csv"]);
     let png = d.join("plot.png");
     ok(&[

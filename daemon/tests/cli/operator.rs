@@ -185,3 +185,25 @@ fn operator_commands() {
         "{err}"
     );
 }
+
+/// `phyllo forecast` with nothing to forecast says why instead of printing
+/// a bare header (issue 56 item 7).
+#[test]
+fn forecast_with_nothing_to_forecast_says_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (cfg, _) = site_config(d, "");
+    let cfg = cfg.as_str();
+    let obs = d.join("one.csv");
+    std::fs::write(
+        &obs,
+        "plant,timestamp,view,leaf_count\nNEW1,2018-04-20T10:00:00,SV_108,4\n",
+    )
+    .unwrap();
+    ok(&["import", "-c", cfg, obs.to_str().unwrap()]);
+    let out = ok(&["forecast", "-c", cfg]);
+    assert_eq!(
+        out.trim(),
+        "no forecast: none of the 1 plants has three dated leaves (or a forward rate) yet"
+    );
+}
