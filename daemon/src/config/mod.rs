@@ -666,6 +666,14 @@ mod tests {
         let text = std::fs::read_to_string(&path).unwrap();
         let cfg = Config::parse(&text).unwrap();
         assert_eq!(cfg.drop_dir, PathBuf::from("/srv/phenotyping/drop"));
+        // Out of the box it groups the facility's plants by genotype and
+        // treatment, not each plant alone (issue 56 item 5).
+        let groups = cfg.rules().groups.as_ref().expect("the example sets [groups]");
+        assert_eq!(
+            groups.group_of("402-348-N276-WW-1"),
+            Some(vec!["N276".to_string(), "WW".to_string()])
+        );
+        assert_eq!(groups.group_of("402-349-N276-WW-2"), groups.group_of("402-348-N276-WW-1"));
         let keys = [
             "drop_dir",
             "database",

@@ -236,10 +236,23 @@ pub fn plot(rep: &GroupReport, out: &Path) -> anyhow::Result<()> {
                     colour.stroke_width(2),
                 ))
                 .map_err(err)?
-                .label(format!("{} ({} plants)", g.group.join(" / "), g.plants))
+                .label(format!(
+                    "{} ({} plant{})",
+                    g.group.join(" / "),
+                    g.plants,
+                    if g.plants == 1 { "" } else { "s" }
+                ))
                 .legend(move |(lx, ly)| {
                     PathElement::new(vec![(lx, ly), (lx + 20, ly)], colour.stroke_width(2))
                 });
+            // A dot on every day, so that a group of one plant, or of one
+            // day, which has no line to draw, still shows.
+            chart
+                .draw_series(
+                    pts.iter()
+                        .map(|&(px, s)| Circle::new((px, s.mean), 3, colour.filled())),
+                )
+                .map_err(err)?;
         }
         super::plot::draw_legend(&mut chart).map_err(err)?;
         root.present()
