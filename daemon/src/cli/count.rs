@@ -46,6 +46,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     let has_tips = info.has_tips;
     let mut failed = 0usize;
+    let mut drawn = 0usize;
     let stdout = std::io::stdout();
     for path in &args.images {
         // Loose files, not the drop directory's: no `[names]` to read them
@@ -54,11 +55,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         let outcome = count_one(&counter, path, &facts, args.overlay.as_deref());
         let mut out = stdout.lock();
         match outcome {
-            Ok(r) => {
+            Ok((r, overlay)) => {
+                drawn += usize::from(overlay.is_some());
                 if args.json {
                     let mut v = serde_json::to_value(&r)?;
                     v["file"] = json!(path);
                     v["model"] = json!(counter.model_id_for(facts.view));
+                    if let Some(o) = overlay {
+                        v["overlay"] = json!(o);
+                    }
                     writeln!(out, "{v}")?;
                 } else {
                     // With a tip model, the tips found beside the leaves
@@ -90,6 +95,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             }
         }
     }
+    if let Some(dir) = &args.overlay {
+        // On stderr, so that the counts on stdout stay one line per image.
+        eprintln!("overlays: {drawn} drawn into {}", dir.display());
+    }
     Ok(if failed > 0 {
         ExitCode::from(1)
     } else {
@@ -102,20 +111,21 @@ fn count_one(
     path: &Path,
     facts: &ImageFacts,
     overlay_dir: Option<&Path>,
-) -> Result<phyllo_inference::CountResult, InferenceError> {
+) -> Result<(phyllo_inference::CountResult, Option<std::path::PathBuf>), InferenceError> {
     if path.is_dir() {
         return Err(InferenceError::image(path, "is a directory, not an image file"));
     }
     let bytes = std::fs::read(path).map_err(|e| InferenceError::image(path, format!("cannot read: {e}")))?;
     let analysis = counter.analyse_bytes(path, facts, &bytes)?;
-    if let Some(dir) = overlay_dir {
-        let drawn = render_overlay(counter, path, &bytes, &analysis)?;
-        let out = phyllo_evaluation::image_names::overlay_path(dir, path, "overlay");
-        drawn
-            .save(&out)
-            .map_err(|e| InferenceError::image(&out, format!("cannot write overlay: {e}")))?;
-    }
-    Ok(analysis.result)
+    let Some(dir) = overlay_dir else {
+        return Ok((analysis.result, None));
+    };
+    let drawn = render_overlay(counter, path, &bytes, &analysis)?;
+    let out = phyllo_evaluation::image_names::overlay_path(dir, path, "overlay");
+    drawn
+        .save(&out)
+        .map_err(|e| InferenceError::image(&out, format!("cannot write overlay: {e}")))?;
+    Ok((analysis.result, Some(out)))
 }
 
 /// `, camera zoom 2.0 (back panel)` where the count assumed a zoomed camera,

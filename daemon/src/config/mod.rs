@@ -673,7 +673,10 @@ mod tests {
             groups.group_of("402-348-N276-WW-1"),
             Some(vec!["N276".to_string(), "WW".to_string()])
         );
-        assert_eq!(groups.group_of("402-349-N276-WW-2"), groups.group_of("402-348-N276-WW-1"));
+        assert_eq!(
+            groups.group_of("402-349-N276-WW-2"),
+            groups.group_of("402-348-N276-WW-1")
+        );
         let keys = [
             "drop_dir",
             "database",
