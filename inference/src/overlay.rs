@@ -1,8 +1,9 @@
 //! Overlays for a person to check a count: instances in distinct colours over
 //! the original image (neighbouring leaf numbers far apart in hue), each
-//! leaf's centre marked with a black-edged white cross and its number, leaf
-//! tips marked (white-ringed dots, models with a tip output), the count
-//! written in the corner.
+//! leaf's centre marked with a black-edged white cross and its number (from
+//! the base upward), leaf tips marked (white-ringed dots, models with a tip
+//! output), the count written in the corner, and the back panel's measured
+//! edges dashed in yellow, with a line saying so.
 
 use std::path::Path;
 
@@ -45,7 +46,7 @@ pub fn render(contract: &Contract, img: &RgbImage, analysis: &Analysis, untraine
     }
     let mark = (img.width().max(img.height()) / 300).max(2) as i64;
     let number_scale = (mark as u32 / 2).max(1);
-    for (k, inst) in analysis.result.instances.iter().enumerate() {
+    for (k, inst) in from_the_base(&analysis.result.instances).into_iter().enumerate() {
         let (x, y) = (inst.centre[0] as i64, inst.centre[1] as i64);
         mark_centre(&mut out, x, y, mark);
         // The leaf's number just right of its cross, as a person reads the count.
@@ -88,7 +89,25 @@ pub fn render(contract: &Contract, img: &RgbImage, analysis: &Analysis, untraine
     }
     let scale = (img.height() / 160).clamp(2, 8);
     text(&mut out, &label, 8, 8, scale);
+    if analysis.result.camera.as_ref().is_some_and(|c| c.panel.is_some()) {
+        // Small enough to fit a half-size crop's width.
+        let legend = "yellow dashes: back panel edges (zoom measured on them)";
+        text(&mut out, legend, 8, 8 + 13 * scale, (scale / 3).max(1));
+    }
     out
+}
+
+/// The instances in the order a person counts a plant: from the base
+/// upward, by where each reaches lowest (the leaf's base, or its drooping
+/// tip), so leaf 1 is the lowest and the numbers climb the plant.
+fn from_the_base(instances: &[crate::result::Instance]) -> Vec<&crate::result::Instance> {
+    let mut order: Vec<&crate::result::Instance> = instances.iter().collect();
+    order.sort_by(|a, b| {
+        b.bbox[3]
+            .cmp(&a.bbox[3])
+            .then(a.centre[0].total_cmp(&b.centre[0]))
+    });
+    order
 }
 
 /// Marks the back panel's measured edges (what the camera zoom was measured
@@ -227,5 +246,26 @@ mod tests {
             assert!(img.pixels().any(|p| p.0 == [other; 3]), "background {bg}");
             assert_eq!(img.get_pixel(20, 11).0, [0; 3], "the edge beyond the arm's end");
         }
+    }
+
+    #[test]
+    fn leaves_are_numbered_from_the_base_upward() {
+        let leaf = |id: u32, bottom: u32, x: f32| crate::result::Instance {
+            id,
+            class: phyllo_contract::LEAF,
+            class_name: "leaf".into(),
+            area: 1,
+            bbox: [0, 0, 10, bottom],
+            centre: [x, 0.0],
+            score: 1.0,
+        };
+        let leaves = [
+            leaf(1, 300, 5.0),
+            leaf(2, 900, 5.0),
+            leaf(3, 600, 9.0),
+            leaf(4, 600, 1.0),
+        ];
+        let ids: Vec<u32> = from_the_base(&leaves).iter().map(|l| l.id).collect();
+        assert_eq!(ids, [2, 4, 3, 1]);
     }
 }
