@@ -163,9 +163,22 @@ fn chart<'a, 'b>(
             }
         })
         .y_desc("leaves")
+        .x_label_formatter(&|v| tick(*v))
         .label_style(("sans-serif", 14))
         .draw()?;
     Ok(chart)
+}
+
+/// A tick's label: whole numbers without decimals, others to one, and never
+/// "-0.0" (a single session's axis runs from -0.5).
+fn tick(v: f64) -> String {
+    // Adding 0.0 turns -0.0 into 0.0.
+    let r = (v * 10.0).round() / 10.0 + 0.0;
+    if r.fract() == 0.0 {
+        format!("{r:.0}")
+    } else {
+        format!("{r:.1}")
+    }
 }
 
 /// The counts of each session: per view, fused, in doubt, and by people.
@@ -306,13 +319,15 @@ fn leaf_number<'a>(label: String, (x, y): (f64, f64), color: &RGBColor) -> Text<
     )
 }
 
-/// The legend of every phyllo plot: upper left, on a translucent white box.
+/// The legend of every phyllo plot: lower right, on a translucent white box,
+/// where curves that climb with the days leave room (upper left, it hid a
+/// plant's first sessions).
 pub(crate) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
     chart: &mut ChartContext<'a, DB, CT>,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
+        .position(SeriesLabelPosition::LowerRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .label_font(("sans-serif", 14))
@@ -405,6 +420,14 @@ fn steps(xs: &[f64], values: impl Iterator<Item = f64>) -> Vec<(f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ticks_read_without_minus_zero_or_needless_decimals() {
+        assert_eq!(
+            [-0.4, -0.0, -1e-12, 0.2, 1.0, 12.0].map(tick),
+            ["-0.4", "0", "0", "0.2", "1", "12"]
+        );
+    }
 
     #[test]
     fn plant_ids_become_plain_file_names() {
