@@ -148,4 +148,16 @@ fn an_image_deeper_than_the_system_can_open_is_recorded_as_failed() {
         error.contains("longer than the 4096 the system can open"),
         "{error}"
     );
+    // An operator who has seen it acknowledges it (issue 56 item 2).
+    let cfg = config.to_str().unwrap();
+    assert_eq!(
+        phyllo(&["status", "--ack", "-c", cfg]).trim(),
+        "acknowledged 1 failure: status and --check no longer count them"
+    );
+    let out = Command::new(BIN)
+        .args(["status", "--check", "-c", cfg])
+        .output()
+        .unwrap();
+    let line = String::from_utf8_lossy(&out.stdout);
+    assert!(!line.contains("failed in the last 24 h"), "{line}");
 }

@@ -213,6 +213,36 @@ fn serve_counts_every_complete_image_exactly_once() {
         .any(|r| r["kind"] == "failed" && r["path"] == "holiday.png"));
 }
 
+/// A misnamed image renamed to its proper name is counted, and its old
+/// failure is superseded: `status` and `--check` stop listing it (issue 56
+/// item 2). A failure whose file is still there stays.
+#[test]
+fn a_failure_made_moot_by_a_rename_stops_counting_as_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = config(dir.path());
+    let db: PathBuf = cfg.database.clone();
+    std::fs::create_dir_all(&cfg.drop_dir).unwrap();
+    std::fs::write(cfg.drop_dir.join("P7 from the camera.png"), body(6)).unwrap();
+    std::fs::write(cfg.drop_dir.join("stays misnamed.png"), body(5)).unwrap();
+    let svc = start(cfg.clone());
+    let open_failures = "SELECT COUNT(*) FROM images WHERE state = 'failed' AND superseded = 0";
+    wait_for("two failures", Duration::from_secs(30), || {
+        q(&db, open_failures) == 2
+    });
+    std::fs::rename(
+        cfg.drop_dir.join("P7 from the camera.png"),
+        cfg.drop_dir.join(name("P7", 2, 0)),
+    )
+    .unwrap();
+    wait_for("the renamed image counted", Duration::from_secs(30), || {
+        q(&db, "SELECT COUNT(*) FROM observations") == 1
+    });
+    wait_for("its failure superseded", Duration::from_secs(10), || {
+        q(&db, open_failures) == 1
+    });
+    svc.stop();
+}
+
 #[test]
 fn missing_drop_dir_is_waited_for() {
     let dir = tempfile::tempdir().unwrap();

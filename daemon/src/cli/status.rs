@@ -28,6 +28,10 @@ pub struct Args {
     /// timelines were fitted with and the service's counting settings.
     #[arg(long, conflicts_with_all = ["check", "json"])]
     verbose: bool,
+    /// Acknowledge every failure recorded so far: it leaves the counts, the
+    /// list of failures and `--check` (a file that changes is still counted).
+    #[arg(long, conflicts_with_all = ["check", "json", "verbose"])]
+    ack: bool,
 }
 
 /// Runs `phyllo status`.
@@ -44,6 +48,20 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 ExitCode::from(3)
             }
         });
+    }
+    if args.ack {
+        let config = args.config.load()?;
+        let mut store = Store::open(
+            &config.database,
+            &config.rules().timeline,
+            config.inference.max_attempts,
+        )?;
+        let n = store.acknowledge_failures()?;
+        println!(
+            "acknowledged {}: status and --check no longer count them",
+            count(n as i64, "failure", "failures")
+        );
+        return Ok(ExitCode::SUCCESS);
     }
     show(args).map(|()| ExitCode::SUCCESS)
 }

@@ -228,7 +228,7 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
         Precheck::Reuse { count, original } => Some((count, original)),
         Precheck::Process => None,
     };
-    let recorded = match parsed {
+    let recorded = match &parsed {
         Err(e) => {
             let error = format!("{e:#}");
             tracing::warn!("{error}");
@@ -242,10 +242,17 @@ pub fn process(store: &mut Store, ctx: &WorkerCtx, job: &Job) -> anyhow::Result<
             )?
         }
         Ok(name) => match reused {
-            Some((count, original)) => record_reused(store, job, &facts, &name, &count, &original)?,
-            None => count_and_record(store, ctx, job, &facts, &name, &bytes)?,
+            Some((count, original)) => record_reused(store, job, &facts, name, &count, &original)?,
+            None => count_and_record(store, ctx, job, &facts, name, &bytes)?,
         },
     };
+    if let (Recorded::Counted { .. }, Ok(name)) = (&recorded, &parsed) {
+        // A misnamed or broken file renamed or replaced under a new name:
+        // its old failure is moot once the old file is gone.
+        let root = &ctx.config.drop_dir;
+        let gone = |path: &str| !root.join(crate::domain::rel_path::decode(path)).exists();
+        store.supersede_failures(&job.rel, &facts.sha256, name, gone)?;
+    }
     match &recorded {
         Recorded::Counted { .. } => ctx.stats.counted.fetch_add(1, Ordering::Relaxed),
         Recorded::Failed => ctx.stats.failed.fetch_add(1, Ordering::Relaxed),

@@ -22,6 +22,7 @@
 
 mod derive;
 pub mod exports;
+mod failures;
 mod feed;
 mod images;
 mod imports;

@@ -324,6 +324,49 @@ fn failures_are_recorded_and_retried_only_when_transient() {
     assert!(feed.iter().all(|r| r.kind == "failed"));
 }
 
+/// Issue 56 item 2: a failure made moot by a count of the same bytes under
+/// another name leaves the failures once its file is gone; an operator's
+/// acknowledgement clears the rest.
+#[test]
+fn failures_are_superseded_by_a_count_of_their_bytes_or_acknowledged() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = open(&dir);
+    let failed = |s: &mut Store, rel: &str, content: &str| {
+        let outcome = Outcome::Failed {
+            name: None,
+            error: format!("{rel}: matches no pattern"),
+            retry: false,
+        };
+        s.record(&facts(rel, content), outcome).unwrap();
+    };
+    failed(&mut s, "renamed away.png", "a");
+    failed(&mut s, "still here.png", "b");
+    let n = name("P1", day(0), View::Side(0));
+    s.record(&facts("P1_a.png", "a"), Outcome::Counted(&n, &count(5)))
+        .unwrap();
+    let since = "2000-01-01T00:00:00Z";
+    assert_eq!(s.failures_since(since).unwrap(), 2);
+    assert_eq!(
+        s.supersede_failures("P1_a.png", &sha256_hex(b"a"), &n, |_| false)
+            .unwrap(),
+        0,
+        "its file is still there"
+    );
+    assert_eq!(
+        s.supersede_failures("P1_a.png", &sha256_hex(b"a"), &n, |_| true)
+            .unwrap(),
+        1
+    );
+    assert_eq!(s.recent_failures(5).unwrap().len(), 1);
+    assert_eq!(s.acknowledge_failures().unwrap(), 1);
+    assert_eq!(s.failures_since(since).unwrap(), 0);
+    assert!(s.recent_failures(5).unwrap().is_empty());
+    assert!(
+        s.is_known("still here.png", 1, "mtime-of-b", || true).unwrap(),
+        "left alone, not retried"
+    );
+}
+
 /// Issue 57 item 11: `chmod` changes neither size nor mtime, so a file that
 /// failed for its permissions until its attempts ran out is tried again once
 /// it can be read, and only then; other spent failures stay done.
