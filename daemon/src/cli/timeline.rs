@@ -156,8 +156,11 @@ pub fn render(t: &PlantTimeline) -> String {
             }
         }
         s += &format!(
-            "{:>8.1}{:>9.2}{:>8.1}{:>6}\n",
-            row.fused, row.leaves_emerged, row.living, row.leaves_lost
+            "{:>8.1}{:>9}{:>8.1}{:>6}\n",
+            row.fused,
+            crate::domain::timeline::whole_leaves(row.leaves_emerged),
+            row.living,
+            row.leaves_lost
         );
     }
     s += "emergence events:\n";

@@ -49,10 +49,12 @@ impl Doubt {
     pub fn why(&self) -> String {
         let mut parts = Vec::new();
         if self.off_fit > 0.0 {
+            // In whole leaves, as the exports and `tail` give them: nobody
+            // counts half a leaf.
             parts.push(format!(
                 "count {} where the timeline has {}",
                 trim(self.fused),
-                trim(self.fit)
+                crate::domain::timeline::whole_leaves(self.fit)
             ));
         }
         if self.views_differing > 0 {

@@ -230,6 +230,14 @@ fn median(xs: &[f64]) -> f64 {
 /// above any plant's, it bounds the work of [`deaths`].
 pub const MAX_COUNT: u32 = 1000;
 
+/// A fitted leaf count in whole leaves, as every output a person reads
+/// gives it: the leaves the fit has reached (12.5 is 12). Applied to the
+/// non-decreasing fit of leaves emerged, it never decreases either.
+pub fn whole_leaves(fit: f64) -> u32 {
+    // The epsilon keeps 12.999999999 (a sum of fractions) at 13.
+    (fit + 1e-9).floor().max(0.0) as u32
+}
+
 /// Parameters of the timeline fit (from `[timeline]`).
 #[derive(Debug, Clone)]
 pub struct TimelineParams {
@@ -569,6 +577,19 @@ fn phyllochron(events: &[Event]) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Issue 56 item 1: a fit of 12.5 is 12 leaves wherever a person reads
+    /// it, and a non-decreasing fit stays non-decreasing in whole leaves.
+    #[test]
+    fn whole_leaves_are_the_leaves_the_fit_has_reached() {
+        assert_eq!(
+            [0.0, 0.4, 12.5, 12.999_999_999_9, 13.0, -0.2].map(whole_leaves),
+            [0, 0, 12, 13, 13, 0]
+        );
+        let fit = [3.0, 3.5, 3.5, 4.0, 5.25, 5.25, 7.0];
+        let whole: Vec<u32> = fit.iter().map(|&f| whole_leaves(f)).collect();
+        assert!(whole.windows(2).all(|w| w[0] <= w[1]), "{whole:?}");
+    }
     use chrono::NaiveDate;
 
     /// Living leaves counted by a person on successive imaging days

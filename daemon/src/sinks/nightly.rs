@@ -23,7 +23,7 @@ pub fn write(
     let dir = config.export_dir();
     let mut index = index_html::Index {
         generated_at: chrono::Local::now().format("%Y-%m-%d %H:%M").to_string(),
-        plants: export::table(store, "plants")?,
+        plants: without_fits(export::table(store, "plants")?),
         failed: (store.image_counts()?.failed, store.recent_failures(20)?),
         health,
         ..Default::default()
@@ -56,6 +56,14 @@ pub fn write(
     index_html::write(&page, &index)?;
     say(format!("index: {}", page.display()));
     Ok(())
+}
+
+/// A table without its `*_fit` columns: the page is for people, who read
+/// whole leaves; the fits stay in the CSVs for analysis.
+fn without_fits((head, rows): (Vec<String>, Vec<Vec<String>>)) -> (Vec<String>, Vec<Vec<String>>) {
+    let keep: Vec<usize> = (0..head.len()).filter(|&i| !head[i].ends_with("_fit")).collect();
+    let pick = |r: &Vec<String>| keep.iter().filter_map(|&i| r.get(i).cloned()).collect();
+    (pick(&head), rows.iter().map(pick).collect())
 }
 
 /// Every plant's timeline plot and its newest placed leaf.

@@ -260,10 +260,16 @@ fn draw_fits(chart: &mut Chart<'_, '_>, t: &PlantTimeline, xs: &[f64]) -> Result
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], GREEN.stroke_width(2)));
     chart
         .draw_series(LineSeries::new(
-            steps(xs, t.sessions.iter().map(|s| s.leaves_emerged)),
+            // Whole leaves, as every output a person reads gives them.
+            steps(
+                xs,
+                t.sessions
+                    .iter()
+                    .map(|s| f64::from(crate::domain::timeline::whole_leaves(s.leaves_emerged))),
+            ),
             RED.stroke_width(3),
         ))?
-        .label("leaves emerged (isotonic fit)")
+        .label("leaves emerged (whole leaves of the fit)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
     if t.sessions.iter().any(|s| s.leaves_lost > 0.0) {
         let brown = RGBColor(140, 90, 40);

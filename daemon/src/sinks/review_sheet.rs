@@ -71,7 +71,7 @@ pub fn rows(items: &[Item]) -> Vec<Vec<String>> {
                 "human".into(),
                 String::new(),
                 format_real(d.fused),
-                format_real(d.fit),
+                crate::domain::timeline::whole_leaves(d.fit).to_string(),
                 views.join(" "),
                 d.why(),
                 it.images.join(";"),

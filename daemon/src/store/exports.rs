@@ -32,11 +32,13 @@ fn query(kind: &str) -> anyhow::Result<&'static str> {
              WHERE ?1 IS NULL OR s.start >= ?1
              ORDER BY p.name, s.start"
         }
-        // One row per plant and session: fused count, leaves emerged (fit), living leaves
-        // (smoothed), leaves read as dead by then.
+        // One row per plant and session: fused count, leaves emerged (whole leaves:
+        // the fit's dated leaves, never falling; the fit itself in leaves_emerged_fit),
+        // living leaves (smoothed), leaves read as dead by then.
         "timeline" => {
-            "SELECT p.name AS plant, s.start AS session_start, s.fused, s.leaves_emerged, s.living,
-                    p.phyllochron_days, s.leaves_lost
+            "SELECT p.name AS plant, s.start AS session_start, s.fused,
+                    CAST(s.leaves_emerged + 1e-9 AS INTEGER) AS leaves_emerged, s.living,
+                    p.phyllochron_days, s.leaves_lost, s.leaves_emerged AS leaves_emerged_fit
              FROM sessions s JOIN plants p ON p.id = s.plant_id
              WHERE ?1 IS NULL OR s.start >= ?1
              ORDER BY p.name, s.start"
@@ -53,12 +55,14 @@ fn query(kind: &str) -> anyhow::Result<&'static str> {
         "plants" => {
             "SELECT p.name AS plant, p.sessions,
                     (SELECT MIN(s.start) FROM sessions s WHERE s.plant_id = p.id) AS first_session,
-                    p.last_taken_at AS last_session, p.leaves_emerged, p.living,
+                    p.last_taken_at AS last_session,
+                    CAST(p.leaves_emerged + 1e-9 AS INTEGER) AS leaves_emerged, p.living,
                     (SELECT COALESCE(MAX(s.leaves_lost), 0) FROM sessions s WHERE s.plant_id = p.id) AS leaves_lost,
                     p.phyllochron_days,
                     (SELECT COUNT(*) FROM events e WHERE e.plant_id = p.id) AS events,
                     (SELECT MAX(e.emerged_at) FROM events e WHERE e.plant_id = p.id) AS last_emergence,
-                    p.phyllochron_cd, p.climate_zone, p.next_leaf, p.next_leaf_at AS next_leaf_expected
+                    p.phyllochron_cd, p.climate_zone, p.next_leaf, p.next_leaf_at AS next_leaf_expected,
+                    p.leaves_emerged AS leaves_emerged_fit
              FROM plants p
              WHERE ?1 IS NULL OR p.last_taken_at >= ?1
              ORDER BY p.name"

@@ -73,10 +73,9 @@ fn a_temperature_log_gives_degree_days_per_leaf() {
     assert!(ok(&["timeline", "-c", cfg, "F-1"]).contains(" degree-days per leaf"));
     let text = plants_csv(cfg, d);
     assert!(
-        text.lines()
-            .next()
-            .unwrap()
-            .ends_with(",last_emergence,phyllochron_cd,climate_zone,next_leaf,next_leaf_expected"),
+        text.lines().next().unwrap().ends_with(
+            ",last_emergence,phyllochron_cd,climate_zone,next_leaf,next_leaf_expected,leaves_emerged_fit"
+        ),
         "{text}"
     );
     // Leaves emerge at the same hour each day, so each day between two adds
@@ -191,7 +190,7 @@ fn compartments_keep_their_own_temperature_logs() {
         text.lines()
             .next()
             .unwrap()
-            .ends_with(",phyllochron_cd,climate_zone,next_leaf,next_leaf_expected"),
+            .ends_with(",phyllochron_cd,climate_zone,next_leaf,next_leaf_expected,leaves_emerged_fit"),
         "{text}"
     );
     assert!(

@@ -118,7 +118,7 @@ fn operator_commands() {
     let plants = std::fs::read_to_string(d.join("state/exports/plants.csv")).unwrap();
     assert!(
         plants.starts_with(
-            "plant,sessions,first_session,last_session,leaves_emerged,living,leaves_lost,phyllochron_days,events,last_emergence,phyllochron_cd,climate_zone,next_leaf,next_leaf_expected\r\n"
+            "plant,sessions,first_session,last_session,leaves_emerged,living,leaves_lost,phyllochron_days,events,last_emergence,phyllochron_cd,climate_zone,next_leaf,next_leaf_expected,leaves_emerged_fit\r\n"
         ),
         "{plants}"
     );
