@@ -107,7 +107,12 @@ impl Report {
     /// Reads it from the store, the snapshots and the disk.
     fn read(config: &Config, store: &Store) -> anyhow::Result<Report> {
         let svc = store.service()?;
-        let check = check_line(&findings(&health(config, store)?)).0;
+        // As --check would say it; plain status still shows the rest when it
+        // cannot (an unreadable backup directory is shown, not fatal).
+        let check = match health(config, store) {
+            Ok(h) => check_line(&findings(&h)).0,
+            Err(e) => format!("phyllo UNKNOWN: {e:#}"),
+        };
         let counts = store.image_counts()?;
         let timeline = store.timeline_summary()?;
         let last = store.last_image()?;

@@ -58,11 +58,12 @@ impl CsvOut {
         I: IntoIterator<Item = T>,
         T: AsRef<str>,
     {
-        self.0.write_record(
-            record
-                .into_iter()
-                .map(|f| crate::files::csv_cell::neutralise(f.as_ref()).into_owned()),
-        )
+        // Field by field, so that a cell is copied only when it gains its `'`.
+        for field in record {
+            self.0
+                .write_field(crate::files::csv_cell::neutralise(field.as_ref()).as_bytes())?;
+        }
+        self.0.write_record(None::<&[u8]>)
     }
 }
 

@@ -45,10 +45,14 @@ where
                 .join(",")
         )
     };
-    // People read whole leaves (the CSVs keep the fractions): the fused count
-    // rounded, and leaves emerged as the leaves the fit has dated so far.
+    // People read whole leaves: the fused count rounded, and leaves emerged
+    // as the leaves the fit has reached, the rule of every output.
     let fused = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{}", v.round()));
-    let emerged = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{}", (v + 1e-6).floor()));
+    let emerged = |v: Option<f64>| {
+        v.map_or("-".to_string(), |v| {
+            crate::domain::timeline::whole_leaves(v).to_string()
+        })
+    };
     match r.kind.as_str() {
         "count" => format!(
             "{}  {plant}  {}  count {}  fused {}  emerged {}{new}",

@@ -32,8 +32,8 @@ fn query(kind: &str) -> anyhow::Result<&'static str> {
              WHERE ?1 IS NULL OR s.start >= ?1
              ORDER BY p.name, s.start"
         }
-        // One row per plant and session: fused count, leaves emerged (whole leaves:
-        // the fit's dated leaves, never falling; the fit itself in leaves_emerged_fit),
+        // One row per plant and session: fused count, leaves emerged (whole leaves, as
+        // domain::timeline::whole_leaves has them; the fit itself in leaves_emerged_fit),
         // living leaves (smoothed), leaves read as dead by then.
         "timeline" => {
             "SELECT p.name AS plant, s.start AS session_start, s.fused,
