@@ -8,6 +8,10 @@
 //! build as the last fallback of the runtime search (see `src/runtime.rs`).
 //! Nothing here is needed at run time: the library can also come from the
 //! system, from beside the executable, or from an explicit path.
+//!
+//! A cross build (an aarch64 target on an x86 machine, say) gets the wheel
+//! for the target's architecture, kept in its own cache folder, so an x86
+//! library never lands in an ARM build.
 
 use std::env;
 use std::fs;
@@ -35,7 +39,16 @@ fn main() {
         println!("cargo:rustc-env=PHYLLO_ORT_BUILD_LIB=");
         return;
     }
-    match provision() {
+    let arch = env::var("CARGO_CFG_TARGET_ARCH").unwrap_or_default();
+    let Some(wheel) = WheelTarget::for_arch(&arch) else {
+        println!(
+            "cargo:warning=PyPI has no onnxruntime {ORT_VERSION} wheel for {arch}; \
+             phyllo will look for the library at run time (PHYLLO_ORT_LIB, beside the binary, system paths)"
+        );
+        println!("cargo:rustc-env=PHYLLO_ORT_BUILD_LIB=");
+        return;
+    };
+    match provision(&wheel) {
         Ok(lib) => {
             println!("cargo:rerun-if-changed={}", lib.display());
             println!("cargo:rustc-env=PHYLLO_ORT_BUILD_LIB={}", lib.display());
@@ -50,20 +63,63 @@ fn main() {
     }
 }
 
-fn cache_dir() -> Option<PathBuf> {
+/// Which wheel to ask pip for: the host's own (pip's default), or another
+/// architecture's for a cross build.
+struct WheelTarget {
+    /// `--platform` for pip, `None` when the target is the host.
+    platform: Option<&'static str>,
+    /// Appended to the cache folder's name; empty for the host's library, so
+    /// caches from before cross builds stay valid.
+    suffix: String,
+    /// Part of the wheel's file name that names the architecture.
+    arch_tag: &'static str,
+}
+
+impl WheelTarget {
+    fn for_arch(arch: &str) -> Option<WheelTarget> {
+        let arch_tag = match arch {
+            "x86_64" => "x86_64",
+            "aarch64" => "aarch64",
+            _ => return None,
+        };
+        if arch == env::consts::ARCH {
+            return Some(WheelTarget {
+                platform: None,
+                suffix: String::new(),
+                arch_tag,
+            });
+        }
+        // The wheels of this version are tagged manylinux_2_27/2_28; pip
+        // accepts an older glibc tag for a newer --platform.
+        let platform = match arch {
+            "x86_64" => "manylinux_2_28_x86_64",
+            _ => "manylinux_2_28_aarch64",
+        };
+        Some(WheelTarget {
+            platform: Some(platform),
+            suffix: format!("-{arch}"),
+            arch_tag,
+        })
+    }
+}
+
+fn cache_dir(wheel: &WheelTarget) -> Option<PathBuf> {
     if let Some(dir) = env::var_os("PHYLLO_ORT_CACHE") {
-        return Some(PathBuf::from(dir));
+        return Some(PathBuf::from(dir).join(wheel.suffix.trim_start_matches('-')));
     }
     let base = env::var_os("XDG_CACHE_HOME")
         .map(PathBuf::from)
         .or_else(|| env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
-    Some(base.join("phyllo").join(format!("onnxruntime-{ORT_VERSION}")))
+    Some(
+        base.join("phyllo")
+            .join(format!("onnxruntime-{ORT_VERSION}{}", wheel.suffix)),
+    )
 }
 
-fn provision() -> Result<PathBuf, String> {
+fn provision(wheel_target: &WheelTarget) -> Result<PathBuf, String> {
     let lib_name = format!("libonnxruntime.so.{ORT_VERSION}");
     let out_dir = PathBuf::from(env::var("OUT_DIR").map_err(|e| e.to_string())?);
-    let dir = cache_dir().unwrap_or_else(|| out_dir.join("onnxruntime"));
+    let dir = cache_dir(wheel_target).unwrap_or_else(|| out_dir.join("onnxruntime"));
     let lib = dir.join(&lib_name);
     if lib.is_file() {
         return Ok(lib);
@@ -71,30 +127,33 @@ fn provision() -> Result<PathBuf, String> {
     fs::create_dir_all(&dir).map_err(|e| format!("create {}: {e}", dir.display()))?;
     let wheel_dir = out_dir.join("onnxruntime-wheel");
     fs::create_dir_all(&wheel_dir).map_err(|e| format!("create {}: {e}", wheel_dir.display()))?;
-    let wheel = match find_wheel(&wheel_dir) {
+    let wheel = match find_wheel(&wheel_dir, wheel_target.arch_tag) {
         Some(w) => w,
         None => {
-            download_wheel(&wheel_dir)?;
-            find_wheel(&wheel_dir).ok_or("pip reported success but left no onnxruntime wheel")?
+            download_wheel(&wheel_dir, wheel_target.platform)?;
+            find_wheel(&wheel_dir, wheel_target.arch_tag)
+                .ok_or("pip reported success but left no onnxruntime wheel")?
         }
     };
     extract_library(&wheel, &lib_name, &lib)?;
     Ok(lib)
 }
 
-fn find_wheel(dir: &Path) -> Option<PathBuf> {
+fn find_wheel(dir: &Path, arch_tag: &str) -> Option<PathBuf> {
     fs::read_dir(dir)
         .ok()?
         .filter_map(Result::ok)
         .map(|e| e.path())
         .find(|p| {
-            p.file_name()
-                .and_then(|n| n.to_str())
-                .is_some_and(|n| n.starts_with(&format!("onnxruntime-{ORT_VERSION}-")) && n.ends_with(".whl"))
+            p.file_name().and_then(|n| n.to_str()).is_some_and(|n| {
+                n.starts_with(&format!("onnxruntime-{ORT_VERSION}-"))
+                    && n.contains(arch_tag)
+                    && n.ends_with(".whl")
+            })
         })
 }
 
-fn download_wheel(dir: &Path) -> Result<(), String> {
+fn download_wheel(dir: &Path, platform: Option<&str>) -> Result<(), String> {
     let spec = format!("onnxruntime=={ORT_VERSION}");
     let mut last_err = String::from("no python interpreter found");
     for python in ["python3", "python"] {
@@ -107,6 +166,7 @@ fn download_wheel(dir: &Path) -> Result<(), String> {
                 "--only-binary=:all:",
                 "--disable-pip-version-check",
             ])
+            .args(platform_args(platform))
             .arg("--dest")
             .arg(dir)
             .arg(&spec)
@@ -118,6 +178,15 @@ fn download_wheel(dir: &Path) -> Result<(), String> {
         }
     }
     Err(last_err)
+}
+
+/// pip's arguments for another architecture's wheel; the Python version only
+/// picks which of the (identical) libraries' wheels is taken.
+fn platform_args(platform: Option<&str>) -> Vec<&str> {
+    match platform {
+        Some(p) => vec!["--platform", p, "--python-version", "3.12"],
+        None => Vec::new(),
+    }
 }
 
 fn extract_library(wheel: &Path, lib_name: &str, dest: &Path) -> Result<(), String> {

@@ -13,9 +13,9 @@
 # Installs what it needs where it is missing: the Rust target (rustup), the
 # cross linker and C compiler for the bundled SQLite (Debian's
 # gcc-aarch64-linux-gnu, with apt-get: run as root), and ONNX Runtime's ARM
-# library, taken from PyPI's onnxruntime wheel for manylinux_2_28_aarch64 (the
-# same version the x86 build provisions). The build sets PHYLLO_ORT_NO_FETCH,
-# so inference/build.rs does not fetch the x86 library for it.
+# library, which inference/build.rs takes from PyPI's onnxruntime wheel for
+# the target's architecture (manylinux_2_28_aarch64; the same version the x86
+# build provisions).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -29,28 +29,18 @@ if ! command -v aarch64-linux-gnu-gcc >/dev/null; then
   apt-get update -qq && apt-get install -y -qq gcc-aarch64-linux-gnu libc6-dev-arm64-cross
 fi
 
-echo "== ONNX Runtime $ort for aarch64 (PyPI wheel)"
-wheels=.whl/aarch64
-lib="$wheels/libonnxruntime.so.$ort"
-if [ ! -e "$lib" ]; then
-  python3 -m pip download -q --no-deps --only-binary=:all: --platform manylinux_2_28_aarch64 \
-    --python-version 3.12 -d "$wheels" "onnxruntime==$ort"
-  python3 - "$wheels" "$ort" <<'PY'
-import pathlib, sys, zipfile
-wheels, version = pathlib.Path(sys.argv[1]), sys.argv[2]
-wheel = next(wheels.glob(f"onnxruntime-{version}-*aarch64*.whl"))
-with zipfile.ZipFile(wheel) as z:
-    name = next(n for n in z.namelist() if n.endswith(f"capi/libonnxruntime.so.{version}"))
-    (wheels / f"libonnxruntime.so.{version}").write_bytes(z.read(name))
-PY
-fi
-
 echo "== cargo build --release --target $target"
-export PHYLLO_ORT_NO_FETCH=1
+# inference/build.rs takes ONNX Runtime's ARM library from PyPI's onnxruntime
+# wheel (manylinux_2_28_aarch64) for this target; PHYLLO_ORT_CACHE keeps it in
+# .whl/aarch64/, where the tree below copies it from.
+export PHYLLO_ORT_CACHE="$root/.whl"
 export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc
 export CC_aarch64_unknown_linux_gnu=aarch64-linux-gnu-gcc
 export AR_aarch64_unknown_linux_gnu=aarch64-linux-gnu-ar
 cargo build --release --locked --target "$target" -p phyllo -p phyllo-gen
+lib="$PHYLLO_ORT_CACHE/aarch64/libonnxruntime.so.$ort"
+[ -e "$lib" ] || { echo "build-aarch64: no $lib: the build could not fetch ONNX Runtime's ARM wheel from PyPI (see its warning above)" >&2; exit 1; }
+file -L "$lib" | grep -q aarch64 || { echo "build-aarch64: $lib is not an ARM library" >&2; exit 1; }
 
 echo "== tree in $out"
 rm -rf "$out"
