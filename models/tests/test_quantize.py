@@ -7,7 +7,7 @@ import onnxruntime as ort
 from phyllo_train.encoders import load_pretrained
 from phyllo_train.export import export_onnx
 from phyllo_train.model import build_model
-from phyllo_train.experiments.quantize import calibration_inputs, quantize
+from phyllo_train.tools.quantize import calibration_inputs, quantize
 
 
 def test_encoder_only_int8_keeps_metadata_and_outputs(tmp_path, contract, tiny_dataset):
@@ -29,3 +29,24 @@ def test_encoder_only_int8_keeps_metadata_and_outputs(tmp_path, contract, tiny_d
     runs = [ort.InferenceSession(str(p), providers=["CPUExecutionProvider"]) for p in (src, out)]
     a, b = (s.run(["semantic"], {"image": inputs[0]})[0].ravel() for s in runs)
     assert np.corrcoef(a, b)[0, 1] > 0.95
+
+
+def test_frames_calibrate_on_the_pipelines_tiles_and_the_daemon_keys_survive(tmp_path, tiny_dataset):
+    from pathlib import Path
+
+    from phyllo_train.tools.quantize import main, pipeline_tiles
+
+    src = Path(__file__).resolve().parents[1] / "phyllo-untrained.onnx"
+    frames = sorted((tiny_dataset / "images").glob("*.png"))
+    tiles = pipeline_tiles(src, frames, limit=3)
+    assert len(tiles) == 3 and all(t.shape == (1, 3, 512, 512) and t.dtype == np.float32 for t in tiles)
+    # The tiles are normalised as the daemon feeds them: not raw pixels.
+    assert -3 < min(float(t.min()) for t in tiles) < 0 < max(float(t.max()) for t in tiles) < 3
+    out = tmp_path / "int8.onnx"
+    main([str(src), "--out", str(out), "--frames", str(tiny_dataset / "images"), "--tiles", "2"])
+    meta = {p.key: p.value for p in onnx.load(str(out)).metadata_props}
+    assert meta["phyllo.contract_version"] == "1"
+    assert meta["phyllo.quantized"] == "int8 QDQ per-channel, all, 2 calibration tiles cut from 6 frames of tiny0"
+    runs = [ort.InferenceSession(str(p), providers=["CPUExecutionProvider"]) for p in (src, out)]
+    a, b = (s.run(["semantic"], {"image": tiles[0]})[0] for s in runs)
+    assert a.shape == b.shape and np.isfinite(b).all()
