@@ -50,6 +50,11 @@ fi
 }
 
 install -D -m 0755 "$bin" "$prefix/bin/phyllo"
+# The release profile keeps line tables for readable backtraces while
+# developing: 80 of the binary's 100 MB, which an installed service does not
+# need. Symbol names stay. Another architecture's binary is left to its own
+# strip (scripts/build-aarch64.sh).
+strip --strip-debug "$prefix/bin/phyllo" 2>/dev/null || true
 install -D -m 0644 "$root/models/phyllo.onnx" "$prefix/share/phyllo/phyllo.onnx"
 # The top-view model, found beside the side-view model ([inference.top_views]).
 if [ -e "$root/models/phyllo-top.onnx" ]; then

@@ -12,8 +12,9 @@ measured as one JSON object (standard library only, so it runs anywhere).
   PNG's IEND or JPEG's EOI, where decoders stop reading), so every file has its
   own hash and is counted, not recorded as a duplicate of an earlier one.
   Dropped names follow the facility's pattern, one plant per source image.
-- The daemon runs with the default intake and inference settings, the model
-  it finds itself (beside the binary, or this source tree's).
+- The daemon runs with the default intake and inference settings (`--config`
+  appends TOML), the model it finds itself (beside the binary, or this
+  source tree's).
 
 JSON fields: `dropped`, `counted`, `failed` (with `errors`), `exit_code` (0 is
 a clean stop), `wall_s` (first drop to last row), `s_per_image`,
@@ -37,12 +38,12 @@ import time
 from pathlib import Path
 
 
-def site_config(root: Path) -> Path:
+def site_config(root: Path, extra: str) -> Path:
     drop, state = root / "drop", root / "state"
     drop.mkdir()
     state.mkdir()
     cfg = root / "phyllo.toml"
-    cfg.write_text(f'drop_dir = "{drop}"\ndatabase = "{state / "phyllo.sqlite"}"\n')
+    cfg.write_text(f'drop_dir = "{drop}"\ndatabase = "{state / "phyllo.sqlite"}"\n{extra}')
     return cfg
 
 
@@ -86,6 +87,7 @@ def main() -> int:
     ap.add_argument("--images", required=True, nargs="+", type=Path)
     ap.add_argument("--n", type=int, default=0, help="files to drop (default: one per image)")
     ap.add_argument("--timeout", type=float, default=3600, help="seconds to wait for every row")
+    ap.add_argument("--config", default="", help="TOML appended to the config, e.g. '[inference]\\nworkers = 1'")
     args = ap.parse_args()
     n = args.n or len(args.images)
     cmd = [str(args.phyllo.resolve())]
@@ -94,7 +96,7 @@ def main() -> int:
 
     with tempfile.TemporaryDirectory(prefix="phyllo-burst-") as tmp:
         root = Path(tmp)
-        cfg = site_config(root)
+        cfg = site_config(root, args.config.replace("\\n", "\n"))
         db = root / "state" / "phyllo.sqlite"
         log = open(root / "serve.log", "wb")
         proc = subprocess.Popen(cmd + ["serve", "--config", str(cfg)], stdout=log, stderr=subprocess.STDOUT)

@@ -7,13 +7,21 @@
 //! 1. an explicit path (`--ort-lib`, the config key `ort_lib` under `[inference]`);
 //! 2. the environment variable `PHYLLO_ORT_LIB` (then ort's own `ORT_DYLIB_PATH`);
 //! 3. beside the executable, and in `../lib/phyllo/` relative to it (a packaged install);
-//! 4. system locations: `/usr/lib/phyllo`, `/usr/local/lib`, `/usr/lib/x86_64-linux-gnu`, `/usr/lib`;
+//! 4. system locations: `/usr/lib/phyllo`, `/usr/local/lib`, the target's
+//!    multiarch folder (`/usr/lib/x86_64-linux-gnu`, `/usr/lib/aarch64-linux-gnu`), `/usr/lib`;
 //! 5. the copy provisioned at build time from PyPI (see `build.rs`).
 
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, OnceLock};
 
 use crate::error::InferenceError;
+
+/// Debian's multiarch library folder for the architecture this was built for.
+const MULTIARCH_LIB_DIR: &str = if cfg!(target_arch = "aarch64") {
+    "/usr/lib/aarch64-linux-gnu"
+} else {
+    "/usr/lib/x86_64-linux-gnu"
+};
 
 /// ONNX Runtime version this build expects (major.minor.patch).
 pub const ORT_VERSION: &str = env!("PHYLLO_ORT_VERSION");
@@ -51,12 +59,7 @@ pub fn candidates(explicit: Option<&Path>) -> Vec<PathBuf> {
         dirs.push(exe_dir.join("../lib/phyllo"));
         dirs.push(exe_dir);
     }
-    for d in [
-        "/usr/lib/phyllo",
-        "/usr/local/lib",
-        "/usr/lib/x86_64-linux-gnu",
-        "/usr/lib",
-    ] {
+    for d in ["/usr/lib/phyllo", "/usr/local/lib", MULTIARCH_LIB_DIR, "/usr/lib"] {
         dirs.push(PathBuf::from(d));
     }
     let mut out: Vec<PathBuf> = dirs
