@@ -54,4 +54,8 @@ for u in systemd/*.service systemd/*.timer systemd/phyllo.sysusers; do
 done
 tar -C "$(dirname "$out")" -czf "$out.tar.gz" "$(basename "$out")"
 file "$out/bin/phyllo" | sed 's/, BuildID.*//'
+# The box's C library must be at least the newest version the binaries ask for.
+glibc=$(aarch64-linux-gnu-objdump -T "$out/bin/phyllo" "$out/lib/phyllo/libonnxruntime.so" |
+  grep -o 'GLIBC_[0-9.]*' | sort -t. -k2,2n -u | tail -1)
+echo "needs ${glibc/_/ } or newer on the box"
 du -sh "$out" "$out.tar.gz"
