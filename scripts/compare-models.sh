@@ -28,20 +28,12 @@ else
   [ -z "${A_CACHE:-}" ] || cp "$tmp/a" "$A_CACHE"
 fi
 "$bin" eval --threads "${THREADS:-2}" --model "$b" --dataset "$data" --per-image "$@" ${ARGS_B:-} 2>/dev/null >"$tmp/b"
-python3 - "$tmp/a" "$tmp/b" <<'PY'
-import math, re, sys
+python3 - "$root/scripts" "$tmp/a" "$tmp/b" <<'PY'
+import math, sys
+sys.path.insert(0, sys.argv[1])
+from compare_counts import closer, load
 
-def load(path):
-    name, rows = "?", {}
-    for line in open(path):
-        if line.startswith("model"):
-            name = line.split()[1]
-        m = re.match(r"(\S+)\t\S+\ttrue (\d+)\tpredicted (\d+)", line)
-        if m:
-            rows[m[1]] = (int(m[2]), int(m[3]))
-    return name, rows
-
-(na, a), (nb, b) = load(sys.argv[1]), load(sys.argv[2])
+(na, a), (nb, b) = load(sys.argv[2]), load(sys.argv[3])
 if na == nb:
     na, nb = f"{na} (A)", f"{nb} (B)"
 print("| model | images | exact | within ±1 | RMSE | bias |")
@@ -52,10 +44,6 @@ for name, rows in ((na, a), (nb, b)):
     print(f"| {name} | {n} | {100 * sum(x == 0 for x in e) / n:.1f}% | "
           f"{100 * sum(abs(x) <= 1 for x in e) / n:.1f}% | {math.sqrt(sum(x * x for x in e) / n):.3f} | "
           f"{sum(e) / n:+.3f} |")
-err = lambda rows, k: abs(rows[k][1] - rows[k][0])
-wa = sum(err(a, k) < err(b, k) for k in a)
-wb = sum(err(b, k) < err(a, k) for k in a)
-n, k = wa + wb, min(wa, wb)
-p = min(1.0, 2 * sum(math.comb(n, i) for i in range(k + 1)) / 2 ** n) if n else 1.0
+wa, wb, p = closer(a, b, a)
 print(f"\ncloser to the truth: {na} on {wa} images, {nb} on {wb}; sign test p = {p:.3f}")
 PY

@@ -29,7 +29,7 @@ trap 'rm -rf "$tmp"' EXIT
 echo "== sizes"
 scripts/install.sh --prefix "$tmp/x86" --bin target/release/phyllo --no-build --no-systemd >/dev/null
 mb() { du -sb --exclude=phyllo-gen "$@" | awk '{s += $1} END {printf "%.1f MB", s / 1e6}'; }
-size() { awk '{printf "%.1f MB", $1 / 1e6}' < <(stat -Lc %s "$1"); }
+size() { stat -Lc %s "$1" | awk '{printf "%.1f MB", $1 / 1e6}'; }
 echo "| tree | phyllo binary | ONNX Runtime | side + top models | whole install |"
 echo "|---|---:|---:|---:|---:|"
 row() { # label, prefix
