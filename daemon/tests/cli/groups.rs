@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use crate::common::{ok, phyllo};
-use crate::{site_config, two_genotypes, two_genotypes_with};
+use crate::{site_config, steady_counts, two_genotypes, two_genotypes_with};
 
 /// `phyllo groups` and the nightly export's group files, on plants of two
 /// genotypes under two treatments whose leaf numbers are known: genotype A
@@ -17,23 +17,11 @@ fn groups_summarise_genotypes_and_treatments() {
     let (cfg_s, base) = site_config(d, &format!("[export]\ndir = {:?}\n", d.join("exports")));
     let cfg_s = cfg_s.as_str();
     let cfg = Path::new(cfg_s);
-    let mut obs = String::from("plant,timestamp,view,leaf_count\n");
     let plants = [
         "1-A-WW-1", "2-A-WW-2", "3-A-WL-1", "4-B-WW-1", "5-B-WW-2", "6-B-WL-1", "stray",
     ];
-    for p in plants {
-        let every = if p.contains("-B-") { 4 } else { 2 };
-        for day in 0..13 {
-            for a in [0, 36, 72, 108, 144] {
-                obs += &format!(
-                    "{p},2026-11-{:02}T10:00:{:02},SV_{a},{}\n",
-                    1 + day,
-                    a / 36,
-                    4 + day / every
-                );
-            }
-        }
-    }
+    let every = plants.map(|p| (p, if p.contains("-B-") { 4 } else { 2 }));
+    let obs = steady_counts(&every, 13, &[0, 36, 72, 108, 144]);
     std::fs::write(d.join("obs.csv"), obs).unwrap();
     ok(&["import", "-c", cfg_s, d.join("obs.csv").to_str().unwrap()]);
 

@@ -37,29 +37,36 @@ fn two_genotypes_with(d: &Path, extra: &str) -> String {
         d,
         &format!("[groups]\npattern = '^(?P<genotype>[A-Z]+)-\\d+$'\n{extra}"),
     );
-    let mut obs = String::from("plant,timestamp,view,leaf_count\n");
-    for (p, every) in [
+    let plants = [
         ("F-1", 2),
         ("F-2", 2),
         ("F-3", 3),
         ("S-1", 4),
         ("S-2", 4),
         ("S-3", 5),
-    ] {
-        for day in 0..21 {
-            for a in [0, 72, 144] {
+    ];
+    std::fs::write(d.join("obs.csv"), steady_counts(&plants, 21, &[0, 72, 144])).unwrap();
+    ok(&["import", "-c", &cfg, d.join("obs.csv").to_str().unwrap()]);
+    cfg
+}
+
+/// `plant,timestamp,view,leaf_count` rows: each `(plant, every)` seen at
+/// `angles` (the n-th angle n seconds past 10:00) on `days` days from 1
+/// November, with 4 leaves on the first and one more every `every` days.
+fn steady_counts(plants: &[(&str, u32)], days: u32, angles: &[u32]) -> String {
+    let mut obs = String::from("plant,timestamp,view,leaf_count\n");
+    for &(p, every) in plants {
+        for day in 0..days {
+            for (i, a) in angles.iter().enumerate() {
                 obs += &format!(
-                    "{p},2026-11-{:02}T10:00:{:02},SV_{a},{}\n",
+                    "{p},2026-11-{:02}T10:00:{i:02},SV_{a},{}\n",
                     1 + day,
-                    a / 72,
                     4 + day / every
                 );
             }
         }
     }
-    std::fs::write(d.join("obs.csv"), obs).unwrap();
-    ok(&["import", "-c", &cfg, d.join("obs.csv").to_str().unwrap()]);
-    cfg
+    obs
 }
 
 /// `timestamp,temp_c[,zone]` rows every 30 minutes from 30 October for 24
